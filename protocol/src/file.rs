@@ -1,0 +1,365 @@
+//! The file header and page directory of a paged hierarchy file.
+//!
+//! A file is `[header][directory][header crc32][page 0][page 1]...`, all
+//! little-endian; `FORMAT.md` in this crate is the byte-level description.
+//! The header is small and self-checking, so a reader learns the scene's
+//! bounds, attributes and where every page lives from one short read, and
+//! page 0 right after it is the whole model at low resolution.
+
+use glam::DVec3;
+
+use crate::FormatError;
+
+/// The eight bytes every farfield file starts with.
+pub const MAGIC: [u8; 8] = *b"FARFIELD";
+/// Bumped whenever a reader of the previous version would misread the bytes.
+pub const FORMAT_VERSION: u32 = 1;
+/// Bytes of the fixed part of the header, before the directory.
+pub const FIXED_HEADER_BYTES: usize = 136;
+/// Bytes of one directory entry.
+pub const PAGE_ENTRY_BYTES: usize = 40;
+
+/// Which hierarchy the nodes form.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum HierarchyKind {
+    /// QSplat's bounding-sphere hierarchy.
+    Spheres = 1,
+    /// Chamberlain et al.'s color-cube octree.
+    Cubes = 2,
+}
+
+impl HierarchyKind {
+    fn from_u8(v: u8) -> Result<Self, FormatError> {
+        match v {
+            1 => Ok(Self::Spheres),
+            2 => Ok(Self::Cubes),
+            other => Err(FormatError::BadHeader(format!(
+                "unknown hierarchy kind {other}"
+            ))),
+        }
+    }
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Spheres => "spheres",
+            Self::Cubes => "cubes",
+        }
+    }
+}
+
+/// Which optional channels the nodes carry. A scene stores only what it
+/// has: a molecule of spheres has no normals, a bare scan has no color.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct AttributeFlags {
+    pub color: bool,
+    pub normals: bool,
+    pub leaf_geometry: bool,
+}
+
+impl AttributeFlags {
+    fn to_bits(self) -> u8 {
+        u8::from(self.color) | u8::from(self.normals) << 1 | u8::from(self.leaf_geometry) << 2
+    }
+
+    fn from_bits(bits: u8) -> Result<Self, FormatError> {
+        if bits & !0b111 != 0 {
+            return Err(FormatError::BadHeader(format!(
+                "unknown attribute flags {bits:#04x}"
+            )));
+        }
+        Ok(Self {
+            color: bits & 1 != 0,
+            normals: bits & 2 != 0,
+            leaf_geometry: bits & 4 != 0,
+        })
+    }
+}
+
+/// Where one page lives and which nodes it holds.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct PageEntry {
+    /// Byte offset of the page in the file.
+    pub offset: u64,
+    /// Bytes of the page, its header and checksum included.
+    pub length: u32,
+    /// Nodes in the page.
+    pub node_count: u32,
+    /// Breadth-first index of the page's first node.
+    pub first_node: u64,
+    /// Breadth-first index of the first child of the page's first parent
+    /// node: with the child counts in the page it places every child.
+    pub first_child: u64,
+    /// Shallowest and deepest level with nodes in this page.
+    pub level_min: u16,
+    pub level_max: u16,
+    /// CRC-32 of the page, also stored in the page's last four bytes.
+    pub checksum: u32,
+}
+
+/// Everything a reader needs before it touches a page.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FileHeader {
+    pub kind: HierarchyKind,
+    pub attributes: AttributeFlags,
+    /// Bytes of one node record in a page.
+    pub node_bytes: u32,
+    /// Number of levels (the root alone is one level).
+    pub levels: u32,
+    pub nodes: u64,
+    pub leaves: u64,
+    /// Vertices (or points, or atoms) of the input, for statistics.
+    pub input_vertices: u64,
+    /// Axis-aligned bounds of the input, in world units.
+    pub bounds_min: DVec3,
+    pub bounds_max: DVec3,
+    /// The root node's sphere; every other node is relative to its parent.
+    pub root_center: DVec3,
+    pub root_radius: f64,
+    pub pages: Vec<PageEntry>,
+}
+
+impl FileHeader {
+    /// Bytes of header, directory and header checksum: where page 0 starts.
+    pub fn encoded_len(page_count: usize) -> usize {
+        FIXED_HEADER_BYTES + page_count * PAGE_ENTRY_BYTES + 4
+    }
+
+    /// Serializes the header, directory and its checksum.
+    pub fn encode(&self) -> Vec<u8> {
+        let mut out = Vec::with_capacity(Self::encoded_len(self.pages.len()));
+        out.extend_from_slice(&MAGIC);
+        put_u32(&mut out, FORMAT_VERSION);
+        put_u32(&mut out, Self::encoded_len(self.pages.len()) as u32);
+        out.push(self.kind as u8);
+        out.push(self.attributes.to_bits());
+        out.extend_from_slice(&[0, 0]);
+        put_u32(&mut out, self.node_bytes);
+        put_u32(&mut out, self.levels);
+        put_u32(&mut out, self.pages.len() as u32);
+        put_u64(&mut out, self.nodes);
+        put_u64(&mut out, self.leaves);
+        put_u64(&mut out, self.input_vertices);
+        for v in [self.bounds_min, self.bounds_max, self.root_center] {
+            for c in v.to_array() {
+                put_f64(&mut out, c);
+            }
+        }
+        put_f64(&mut out, self.root_radius);
+        debug_assert_eq!(out.len(), FIXED_HEADER_BYTES);
+        for p in &self.pages {
+            put_u64(&mut out, p.offset);
+            put_u32(&mut out, p.length);
+            put_u32(&mut out, p.node_count);
+            put_u64(&mut out, p.first_node);
+            put_u64(&mut out, p.first_child);
+            out.extend_from_slice(&p.level_min.to_le_bytes());
+            out.extend_from_slice(&p.level_max.to_le_bytes());
+            put_u32(&mut out, p.checksum);
+        }
+        let crc = crc32fast::hash(&out);
+        put_u32(&mut out, crc);
+        out
+    }
+
+    /// How many bytes the whole header occupies, read from its first 16
+    /// bytes; lets a reader fetch exactly the header and nothing more.
+    pub fn peek_len(prefix: &[u8]) -> Result<usize, FormatError> {
+        let mut r = Reader::new(prefix, "header");
+        if r.bytes(8)? != MAGIC {
+            return Err(FormatError::BadMagic);
+        }
+        let version = r.u32()?;
+        if version != FORMAT_VERSION {
+            return Err(FormatError::UnsupportedVersion {
+                found: version,
+                supported: FORMAT_VERSION,
+            });
+        }
+        Ok(r.u32()? as usize)
+    }
+
+    /// Parses and verifies a header. `bytes` may extend past the header.
+    pub fn decode(bytes: &[u8]) -> Result<Self, FormatError> {
+        let len = Self::peek_len(bytes)?;
+        if len < FIXED_HEADER_BYTES + 4 {
+            return Err(FormatError::BadHeader(format!(
+                "header length {len} is too small"
+            )));
+        }
+        if bytes.len() < len {
+            return Err(FormatError::Truncated {
+                what: "header",
+                needed: len as u64,
+                have: bytes.len() as u64,
+            });
+        }
+        let body = &bytes[..len - 4];
+        let stored = u32::from_le_bytes([
+            bytes[len - 4],
+            bytes[len - 3],
+            bytes[len - 2],
+            bytes[len - 1],
+        ]);
+        if crc32fast::hash(body) != stored {
+            return Err(FormatError::HeaderChecksum);
+        }
+        let mut r = Reader::new(body, "header");
+        r.bytes(16)?;
+        let kind = HierarchyKind::from_u8(r.u8()?)?;
+        let attributes = AttributeFlags::from_bits(r.u8()?)?;
+        r.bytes(2)?;
+        let node_bytes = r.u32()?;
+        let levels = r.u32()?;
+        let page_count = r.u32()? as usize;
+        if Self::encoded_len(page_count) != len {
+            return Err(FormatError::BadHeader(format!(
+                "{page_count} pages do not fit a header of {len} bytes"
+            )));
+        }
+        let nodes = r.u64()?;
+        let leaves = r.u64()?;
+        let input_vertices = r.u64()?;
+        let vec3 = |r: &mut Reader| -> Result<DVec3, FormatError> {
+            Ok(DVec3::new(r.f64()?, r.f64()?, r.f64()?))
+        };
+        let bounds_min = vec3(&mut r)?;
+        let bounds_max = vec3(&mut r)?;
+        let root_center = vec3(&mut r)?;
+        let root_radius = r.f64()?;
+        let mut pages = Vec::with_capacity(page_count);
+        for _ in 0..page_count {
+            pages.push(PageEntry {
+                offset: r.u64()?,
+                length: r.u32()?,
+                node_count: r.u32()?,
+                first_node: r.u64()?,
+                first_child: r.u64()?,
+                level_min: r.u16()?,
+                level_max: r.u16()?,
+                checksum: r.u32()?,
+            });
+        }
+        let header = Self {
+            kind,
+            attributes,
+            node_bytes,
+            levels,
+            nodes,
+            leaves,
+            input_vertices,
+            bounds_min,
+            bounds_max,
+            root_center,
+            root_radius,
+            pages,
+        };
+        header.check()?;
+        Ok(header)
+    }
+
+    /// Consistency checks a reader relies on, so traversal never indexes out
+    /// of range or divides by zero on a malformed header.
+    fn check(&self) -> Result<(), FormatError> {
+        let bad = |m: String| Err(FormatError::BadHeader(m));
+        if !(self.root_center.is_finite() && self.root_radius.is_finite() && self.root_radius > 0.0)
+        {
+            return bad("root sphere is not finite and positive".into());
+        }
+        if !(self.bounds_min.is_finite() && self.bounds_max.is_finite()) {
+            return bad("bounds are not finite".into());
+        }
+        if self.node_bytes == 0 || self.node_bytes > 8 {
+            return bad(format!("node size {} is out of range", self.node_bytes));
+        }
+        let mut next = 0u64;
+        for (i, p) in self.pages.iter().enumerate() {
+            if p.first_node != next || p.node_count == 0 {
+                return bad(format!("page {i} does not continue the node order"));
+            }
+            next += u64::from(p.node_count);
+        }
+        if next != self.nodes {
+            return bad(format!(
+                "pages hold {next} nodes, header says {}",
+                self.nodes
+            ));
+        }
+        Ok(())
+    }
+
+    /// Index of the page holding breadth-first node `node`.
+    pub fn page_of(&self, node: u64) -> Option<usize> {
+        let i = self.pages.partition_point(|p| p.first_node <= node);
+        let i = i.checked_sub(1)?;
+        (node < self.pages[i].first_node + u64::from(self.pages[i].node_count)).then_some(i)
+    }
+
+    /// Total bytes of the file this header describes.
+    pub fn file_len(&self) -> u64 {
+        self.pages
+            .iter()
+            .map(|p| p.offset + u64::from(p.length))
+            .max()
+            .unwrap_or(0)
+            .max(Self::encoded_len(self.pages.len()) as u64)
+    }
+}
+
+fn put_u32(out: &mut Vec<u8>, v: u32) {
+    out.extend_from_slice(&v.to_le_bytes());
+}
+fn put_u64(out: &mut Vec<u8>, v: u64) {
+    out.extend_from_slice(&v.to_le_bytes());
+}
+fn put_f64(out: &mut Vec<u8>, v: f64) {
+    out.extend_from_slice(&v.to_le_bytes());
+}
+
+/// A bounds-checked little-endian cursor: every read either succeeds or
+/// reports how many bytes were missing.
+pub(crate) struct Reader<'a> {
+    bytes: &'a [u8],
+    at: usize,
+    what: &'static str,
+}
+
+impl<'a> Reader<'a> {
+    pub(crate) fn new(bytes: &'a [u8], what: &'static str) -> Self {
+        Self { bytes, at: 0, what }
+    }
+    pub(crate) fn bytes(&mut self, n: usize) -> Result<&'a [u8], FormatError> {
+        let end = self
+            .at
+            .checked_add(n)
+            .filter(|&e| e <= self.bytes.len())
+            .ok_or(FormatError::Truncated {
+                what: self.what,
+                needed: (self.at + n) as u64,
+                have: self.bytes.len() as u64,
+            })?;
+        let s = &self.bytes[self.at..end];
+        self.at = end;
+        Ok(s)
+    }
+    fn array<const N: usize>(&mut self) -> Result<[u8; N], FormatError> {
+        let mut a = [0u8; N];
+        a.copy_from_slice(self.bytes(N)?);
+        Ok(a)
+    }
+    pub(crate) fn u8(&mut self) -> Result<u8, FormatError> {
+        Ok(self.array::<1>()?[0])
+    }
+    pub(crate) fn u16(&mut self) -> Result<u16, FormatError> {
+        Ok(u16::from_le_bytes(self.array()?))
+    }
+    pub(crate) fn u32(&mut self) -> Result<u32, FormatError> {
+        Ok(u32::from_le_bytes(self.array()?))
+    }
+    pub(crate) fn u64(&mut self) -> Result<u64, FormatError> {
+        Ok(u64::from_le_bytes(self.array()?))
+    }
+    fn f64(&mut self) -> Result<f64, FormatError> {
+        Ok(f64::from_le_bytes(self.array()?))
+    }
+}

@@ -1,0 +1,275 @@
+//! [`Hierarchy`]: a file header plus the pages that are resident so far.
+//!
+//! The client fills it page by page as they stream in; `--file` rendering
+//! and the tests fill it all at once. Each resident page keeps its records
+//! as stored plus one prefix sum per node, so a node finds its first child
+//! without reading the rest of its page (the file stores no pointers:
+//! breadth-first order makes children positions a running sum of child
+//! counts, see `FORMAT.md`).
+
+use glam::{DVec3, Vec3};
+
+use crate::FormatError;
+use crate::file::{FileHeader, HierarchyKind};
+use crate::page::{Page, PageHeader};
+use crate::sphere_codec::{self, NodeLayout, NodeRecord};
+
+/// One verified page, ready for traversal.
+#[derive(Debug, Clone)]
+pub struct ResidentPage {
+    pub header: PageHeader,
+    records: Vec<u8>,
+    /// For node i of the page: its first child's index minus
+    /// `header.first_child`.
+    child_offset: Vec<u32>,
+    /// Bytes of the page as received (for cache accounting).
+    pub byte_len: usize,
+}
+
+/// A node decoded to world units: what the reference decoder yields.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct DecodedNode {
+    pub index: u64,
+    pub level: u32,
+    pub center: DVec3,
+    pub radius: f64,
+    pub normal: Option<Vec3>,
+    /// Cone half-angle in radians (`None` without normals).
+    pub cone: Option<f64>,
+    pub color: Option<[u8; 3]>,
+    pub children: usize,
+    pub first_child: u64,
+}
+
+/// The header of a scene and whichever of its pages are resident.
+#[derive(Debug, Clone)]
+pub struct Hierarchy {
+    pub header: FileHeader,
+    pub layout: NodeLayout,
+    pages: Vec<Option<ResidentPage>>,
+    resident_bytes: usize,
+}
+
+impl Hierarchy {
+    /// An empty hierarchy: nothing resident yet.
+    pub fn new(header: FileHeader) -> Result<Self, FormatError> {
+        if header.kind != HierarchyKind::Spheres {
+            return Err(FormatError::BadHeader(format!(
+                "{} hierarchies are not decoded by this build",
+                header.kind.name()
+            )));
+        }
+        let layout = NodeLayout {
+            normals: header.attributes.normals,
+            color: header.attributes.color,
+        };
+        if layout.bytes() != header.node_bytes {
+            return Err(FormatError::BadHeader(format!(
+                "node size {} does not match the attributes ({} expected)",
+                header.node_bytes,
+                layout.bytes()
+            )));
+        }
+        let pages = vec![None; header.pages.len()];
+        Ok(Self {
+            header,
+            layout,
+            pages,
+            resident_bytes: 0,
+        })
+    }
+
+    /// Verifies page `index` and makes it resident. A page that fails its
+    /// checksum or does not agree with the directory is rejected whole.
+    pub fn insert_page(&mut self, index: u32, bytes: &[u8]) -> Result<(), FormatError> {
+        let entry = *self
+            .header
+            .pages
+            .get(index as usize)
+            .ok_or(FormatError::BadPage {
+                page: index,
+                message: format!("no such page ({} pages)", self.header.pages.len()),
+            })?;
+        let page = Page::parse(bytes, index, self.header.node_bytes)?;
+        let h = page.header;
+        if h.first_node != entry.first_node
+            || h.node_count != entry.node_count
+            || h.first_child != entry.first_child
+        {
+            return Err(FormatError::BadPage {
+                page: index,
+                message: "page disagrees with the directory".into(),
+            });
+        }
+        let node_bytes = self.header.node_bytes as usize;
+        let mut child_offset = Vec::with_capacity(h.node_count as usize);
+        let mut sum = 0u64;
+        let sphere_codes = sphere_codec::sphere_table().len();
+        for i in 0..h.node_count as usize {
+            let rec = NodeRecord::unpack(page.record(i, node_bytes), self.layout);
+            if usize::from(rec.sphere) >= sphere_codes
+                || u32::from(rec.normal) >= sphere_codec::NORMAL_CODES
+            {
+                return Err(FormatError::BadPage {
+                    page: index,
+                    message: format!("node {i} has an invalid code"),
+                });
+            }
+            child_offset.push(sum as u32);
+            sum += rec.children.get() as u64;
+        }
+        // Every child must be a real node after its parent: this is what
+        // keeps traversal of a corrupt-but-checksummed page in bounds.
+        if sum > 0
+            && (h.first_child <= h.first_node
+                || h.first_child + sum > self.header.nodes
+                || sum > u64::from(u32::MAX))
+        {
+            return Err(FormatError::BadPage {
+                page: index,
+                message: "child indices out of range".into(),
+            });
+        }
+        if let Some(old) = &self.pages[index as usize] {
+            self.resident_bytes -= old.byte_len;
+        }
+        self.resident_bytes += bytes.len();
+        self.pages[index as usize] = Some(ResidentPage {
+            header: h,
+            records: page.records.to_vec(),
+            child_offset,
+            byte_len: bytes.len(),
+        });
+        Ok(())
+    }
+
+    /// Drops a page (cache eviction). Its descendants stay resident but are
+    /// unreachable until it returns.
+    pub fn evict_page(&mut self, index: u32) {
+        if let Some(old) = self.pages.get_mut(index as usize).and_then(Option::take) {
+            self.resident_bytes -= old.byte_len;
+        }
+    }
+
+    pub fn page(&self, index: usize) -> Option<&ResidentPage> {
+        self.pages.get(index).and_then(Option::as_ref)
+    }
+
+    pub fn is_resident(&self, index: usize) -> bool {
+        self.page(index).is_some()
+    }
+
+    pub fn resident_pages(&self) -> usize {
+        self.pages.iter().filter(|p| p.is_some()).count()
+    }
+
+    pub fn resident_bytes(&self) -> usize {
+        self.resident_bytes
+    }
+
+    /// The record of node `local` in a resident page.
+    #[inline]
+    pub(crate) fn record(&self, page: &ResidentPage, local: usize) -> NodeRecord {
+        let nb = self.header.node_bytes as usize;
+        let mut word = [0u8; 8];
+        word[..nb].copy_from_slice(&page.records[local * nb..local * nb + nb]);
+        NodeRecord::unpack(u64::from_le_bytes(word), self.layout)
+    }
+
+    /// Breadth-first index of the first child of node `local` of `page`.
+    #[inline]
+    pub(crate) fn first_child(page: &ResidentPage, local: usize) -> u64 {
+        page.header.first_child + u64::from(page.child_offset[local])
+    }
+
+    /// Decodes every node reachable through resident pages, in breadth-first
+    /// order: the reference decoder that tests compare against.
+    pub fn decode_all(&self) -> Vec<DecodedNode> {
+        let mut out = Vec::new();
+        let Some(root_page) = self.page(0) else {
+            return out;
+        };
+        let root = self.decode(
+            root_page,
+            0,
+            self.header.root_center,
+            self.header.root_radius,
+            0,
+            0,
+        );
+        out.push(root);
+        let mut next = 0;
+        while next < out.len() {
+            let parent = out[next];
+            next += 1;
+            if parent.children == 0 {
+                continue;
+            }
+            let Some(page_index) = self.header.page_of(parent.first_child) else {
+                continue;
+            };
+            let Some(page) = self.page(page_index) else {
+                continue;
+            };
+            if !Self::group_fits(page, parent.first_child, parent.children) {
+                continue;
+            }
+            for c in 0..parent.children as u64 {
+                let index = parent.first_child + c;
+                let local = (index - page.header.first_node) as usize;
+                out.push(self.decode(
+                    page,
+                    local,
+                    parent.center,
+                    parent.radius,
+                    index,
+                    parent.level + 1,
+                ));
+            }
+        }
+        out
+    }
+
+    /// True when a sibling group lies wholly inside `page` (always, in a
+    /// well-formed file; checked so a bad one cannot index out of bounds).
+    #[inline]
+    pub(crate) fn group_fits(page: &ResidentPage, first: u64, count: usize) -> bool {
+        first >= page.header.first_node
+            && first + count as u64 <= page.header.first_node + u64::from(page.header.node_count)
+    }
+
+    /// Decodes one node given its quantized parent sphere.
+    pub(crate) fn decode(
+        &self,
+        page: &ResidentPage,
+        local: usize,
+        parent_center: DVec3,
+        parent_radius: f64,
+        index: u64,
+        level: u32,
+    ) -> DecodedNode {
+        let rec = self.record(page, local);
+        let (center, radius) =
+            sphere_codec::decode_sphere(parent_center, parent_radius, rec.sphere);
+        DecodedNode {
+            index,
+            level,
+            center,
+            radius,
+            normal: self
+                .layout
+                .normals
+                .then(|| sphere_codec::decode_normal(rec.normal)),
+            cone: self
+                .layout
+                .normals
+                .then(|| sphere_codec::cone_half_angle(rec.cone)),
+            color: self
+                .layout
+                .color
+                .then(|| sphere_codec::decode_color(rec.color)),
+            children: rec.children.get(),
+            first_child: Self::first_child(page, local),
+        }
+    }
+}

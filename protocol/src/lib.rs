@@ -1,0 +1,54 @@
+//! farfield-protocol: the bytes both sides agree on.
+//!
+//! No async runtime, no GPU: this crate is what the server writes and the
+//! client reads, plus a CPU reference decoder and traversal that tests and
+//! the client share.
+//!
+//! - [`file`]: the paged hierarchy file's [`file::FileHeader`] and
+//!   [`file::PageEntry`] directory (layout in `FORMAT.md`).
+//! - [`page`]: one page's [`page::PageHeader`], checksum and the verified
+//!   [`page::Page`] view a decoder reads nodes from.
+//! - [`sphere_codec`]: QSplat's quantized node: position and radius relative
+//!   to the parent (13 bits), normal (14 bits), cone (2 bits), 5-6-5 color.
+//! - [`camera`]: a view with f64 frustum planes and projected-size math.
+//! - [`traverse`]: the reference traversal that turns resident pages and a
+//!   camera into a cut (splats to draw) and a list of wanted pages.
+//! - [`hierarchy`]: [`hierarchy::Hierarchy`], a header plus whichever pages are
+//!   resident, the one type traversal walks.
+
+pub mod camera;
+pub mod file;
+pub mod hierarchy;
+pub mod page;
+pub mod sphere_codec;
+pub mod traverse;
+
+/// Everything that can be wrong with bytes that claim to be a farfield file
+/// or page. A decoder reports these; it never draws what failed a check.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum FormatError {
+    #[error("not a farfield file (bad magic)")]
+    BadMagic,
+    #[error("format version {found} is not supported (this build reads version {supported})")]
+    UnsupportedVersion { found: u32, supported: u32 },
+    #[error("{what} is truncated: need {needed} bytes, have {have}")]
+    Truncated {
+        what: &'static str,
+        needed: u64,
+        have: u64,
+    },
+    #[error("header checksum mismatch: the header is corrupt")]
+    HeaderChecksum,
+    #[error(
+        "page {page}: checksum mismatch (stored {stored:#010x}, computed {computed:#010x}): the page is corrupt"
+    )]
+    PageChecksum {
+        page: u32,
+        stored: u32,
+        computed: u32,
+    },
+    #[error("page {page}: {message}")]
+    BadPage { page: u32, message: String },
+    #[error("header: {0}")]
+    BadHeader(String),
+}

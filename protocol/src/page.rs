@@ -1,0 +1,180 @@
+//! One page: a header, whole sibling groups of node records, a checksum.
+//!
+//! The bytes of a page on disk are the bytes on the wire, so the checksum
+//! travels with the page and the client verifies exactly what the builder
+//! wrote. A page that fails [`Page::parse`] is reported and never decoded.
+
+use crate::FormatError;
+use crate::file::Reader;
+
+/// The four bytes every page starts with.
+pub const PAGE_MAGIC: [u8; 4] = *b"FFPG";
+/// Bytes of [`PageHeader`] on disk.
+pub const PAGE_HEADER_BYTES: usize = 32;
+/// Bytes of the trailing checksum.
+pub const PAGE_CHECKSUM_BYTES: usize = 4;
+
+/// The self-description at the start of every page.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct PageHeader {
+    pub index: u32,
+    /// Breadth-first index of the first node in the page.
+    pub first_node: u64,
+    /// Breadth-first index of the first child of the page's first parent.
+    pub first_child: u64,
+    pub node_count: u32,
+    pub level_min: u16,
+    pub level_max: u16,
+}
+
+impl PageHeader {
+    fn encode_into(&self, out: &mut Vec<u8>) {
+        out.extend_from_slice(&PAGE_MAGIC);
+        out.extend_from_slice(&self.index.to_le_bytes());
+        out.extend_from_slice(&self.first_node.to_le_bytes());
+        out.extend_from_slice(&self.first_child.to_le_bytes());
+        out.extend_from_slice(&self.node_count.to_le_bytes());
+        out.extend_from_slice(&self.level_min.to_le_bytes());
+        out.extend_from_slice(&self.level_max.to_le_bytes());
+    }
+}
+
+/// Builds a page's bytes from its header and node records; returns the
+/// bytes and their checksum (also stored in the last four bytes).
+pub fn encode_page(header: &PageHeader, records: &[u8]) -> (Vec<u8>, u32) {
+    let mut out = Vec::with_capacity(PAGE_HEADER_BYTES + records.len() + PAGE_CHECKSUM_BYTES);
+    header.encode_into(&mut out);
+    out.extend_from_slice(records);
+    let crc = crc32fast::hash(&out);
+    out.extend_from_slice(&crc.to_le_bytes());
+    (out, crc)
+}
+
+/// A page whose checksum and header were verified; `records` are its nodes.
+#[derive(Debug, Clone, Copy)]
+pub struct Page<'a> {
+    pub header: PageHeader,
+    pub records: &'a [u8],
+}
+
+impl<'a> Page<'a> {
+    /// Verifies and parses page `index` whose records are `node_bytes` each.
+    pub fn parse(bytes: &'a [u8], index: u32, node_bytes: u32) -> Result<Self, FormatError> {
+        let min = PAGE_HEADER_BYTES + PAGE_CHECKSUM_BYTES;
+        if bytes.len() < min {
+            return Err(FormatError::BadPage {
+                page: index,
+                message: format!("{} bytes is shorter than a page header", bytes.len()),
+            });
+        }
+        let body = &bytes[..bytes.len() - PAGE_CHECKSUM_BYTES];
+        let mut tail = [0u8; 4];
+        tail.copy_from_slice(&bytes[bytes.len() - PAGE_CHECKSUM_BYTES..]);
+        let stored = u32::from_le_bytes(tail);
+        let computed = crc32fast::hash(body);
+        if stored != computed {
+            return Err(FormatError::PageChecksum {
+                page: index,
+                stored,
+                computed,
+            });
+        }
+        let mut r = Reader::new(body, "page header");
+        if r.bytes(4)? != PAGE_MAGIC {
+            return Err(FormatError::BadPage {
+                page: index,
+                message: "bad page magic".into(),
+            });
+        }
+        let header = PageHeader {
+            index: r.u32()?,
+            first_node: r.u64()?,
+            first_child: r.u64()?,
+            node_count: r.u32()?,
+            level_min: r.u16()?,
+            level_max: r.u16()?,
+        };
+        if header.index != index {
+            return Err(FormatError::BadPage {
+                page: index,
+                message: format!("page says it is page {}", header.index),
+            });
+        }
+        let records = &body[PAGE_HEADER_BYTES..];
+        if records.len() as u64 != u64::from(header.node_count) * u64::from(node_bytes) {
+            return Err(FormatError::BadPage {
+                page: index,
+                message: format!(
+                    "{} record bytes do not hold {} nodes of {node_bytes} bytes",
+                    records.len(),
+                    header.node_count
+                ),
+            });
+        }
+        Ok(Self { header, records })
+    }
+
+    /// The raw record of the `i`th node in the page, as a little-endian u64.
+    #[inline]
+    pub fn record(&self, i: usize, node_bytes: usize) -> u64 {
+        let start = i * node_bytes;
+        let mut word = [0u8; 8];
+        word[..node_bytes].copy_from_slice(&self.records[start..start + node_bytes]);
+        u64::from_le_bytes(word)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn sample() -> Vec<u8> {
+        let header = PageHeader {
+            index: 3,
+            first_node: 10,
+            first_child: 40,
+            node_count: 2,
+            level_min: 2,
+            level_max: 3,
+        };
+        encode_page(&header, &[1, 2, 3, 4, 5, 6, 7, 8]).0
+    }
+
+    #[test]
+    fn round_trips() {
+        let bytes = sample();
+        let page = Page::parse(&bytes, 3, 4).unwrap();
+        assert_eq!(page.header.first_child, 40);
+        assert_eq!(
+            page.record(1, 4),
+            u64::from(u32::from_le_bytes([5, 6, 7, 8]))
+        );
+    }
+
+    #[test]
+    fn every_flipped_bit_is_caught() {
+        let bytes = sample();
+        for bit in 0..bytes.len() * 8 {
+            let mut bad = bytes.clone();
+            bad[bit / 8] ^= 1 << (bit % 8);
+            assert!(
+                Page::parse(&bad, 3, 4).is_err(),
+                "bit {bit} flip not caught"
+            );
+        }
+    }
+
+    #[test]
+    fn wrong_index_and_sizes_are_errors() {
+        let bytes = sample();
+        assert!(matches!(
+            Page::parse(&bytes, 4, 4),
+            Err(FormatError::BadPage { .. })
+        ));
+        assert!(matches!(
+            Page::parse(&bytes, 3, 3),
+            Err(FormatError::BadPage { .. })
+        ));
+        assert!(Page::parse(&bytes[..10], 3, 4).is_err());
+    }
+}

@@ -1,0 +1,226 @@
+//! The reference traversal (QSplat 2.1): resident pages + camera -> a cut.
+//!
+//! Starting at the root, each node is frustum-culled (a node wholly inside
+//! marks its subtree so no child is tested again), backface-culled by its
+//! normal cone, and then either drawn as a splat (a leaf, small enough on
+//! screen, or children not resident yet) or refined into its children.
+//! Traversal neither draws nor fetches: it returns the splats and the pages
+//! whose arrival would refine the picture, with a priority for each.
+
+use glam::{DVec3, Vec3};
+
+use crate::camera::{Camera, Containment, View};
+use crate::hierarchy::Hierarchy;
+use crate::sphere_codec::{self, NodeRecord};
+
+/// What to draw for one node.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Splat {
+    pub center: DVec3,
+    pub radius: f64,
+    /// Unit normal, when the scene has normals.
+    pub normal: Option<Vec3>,
+    pub color: Option<[u8; 3]>,
+    /// Breadth-first index of the node, for tests and statistics.
+    pub node: u64,
+}
+
+/// A page the traversal would have descended into.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct WantedPage {
+    pub page: u32,
+    /// Larger is more urgent: projected size, discounted off-centre.
+    pub priority: f64,
+}
+
+/// Knobs of one traversal.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TraverseOptions {
+    /// Refine nodes whose projected diameter exceeds this many pixels.
+    pub threshold_px: f64,
+    /// Cull nodes whose normal cone faces wholly away from the eye.
+    pub backface_culling: bool,
+    /// Near-plane distance as a fraction of the root radius.
+    pub near_fraction: f64,
+}
+
+impl Default for TraverseOptions {
+    fn default() -> Self {
+        Self {
+            threshold_px: 1.0,
+            backface_culling: true,
+            near_fraction: 1e-4,
+        }
+    }
+}
+
+/// The result of one traversal.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Cut {
+    pub splats: Vec<Splat>,
+    pub wanted: Vec<WantedPage>,
+    /// Nodes whose record was read.
+    pub visited: u64,
+    pub frustum_culled: u64,
+    pub backface_culled: u64,
+}
+
+#[derive(Clone, Copy)]
+struct Item {
+    page: u32,
+    local: u32,
+    index: u64,
+    center: DVec3,
+    radius: f64,
+    inside: bool,
+    facing: bool,
+}
+
+/// Walks the resident part of `h` for one camera.
+pub fn traverse(h: &Hierarchy, camera: &Camera, options: &TraverseOptions) -> Cut {
+    let view = camera.view(h.header.root_radius * options.near_fraction);
+    let mut cut = Cut::default();
+    if h.page(0).is_none() {
+        cut.wanted.push(WantedPage {
+            page: 0,
+            priority: f64::INFINITY,
+        });
+        return cut;
+    }
+    let threshold = options.threshold_px.max(0.0);
+    let cull_backfaces = options.backface_culling && h.layout.normals;
+    let mut stack = vec![Item {
+        page: 0,
+        local: 0,
+        index: 0,
+        center: h.header.root_center,
+        radius: h.header.root_radius,
+        inside: false,
+        facing: !cull_backfaces,
+    }];
+    // The root's own record may shrink it; decode it like any other node.
+    if let Some(p) = h.page(0) {
+        let rec = h.record(p, 0);
+        let (c, r) =
+            sphere_codec::decode_sphere(h.header.root_center, h.header.root_radius, rec.sphere);
+        stack[0].center = c;
+        stack[0].radius = r;
+    }
+    let mut wanted = std::collections::HashMap::<u32, f64>::new();
+    while let Some(mut item) = stack.pop() {
+        let Some(page) = h.page(item.page as usize) else {
+            continue;
+        };
+        cut.visited += 1;
+        if !item.inside {
+            match view.classify(item.center, item.radius) {
+                Containment::Outside => {
+                    cut.frustum_culled += 1;
+                    continue;
+                }
+                Containment::Inside => item.inside = true,
+                Containment::Intersecting => {}
+            }
+        }
+        let rec = h.record(page, item.local as usize);
+        if !item.facing {
+            match facing(&view, item.center, item.radius, &rec) {
+                Facing::Away => {
+                    cut.backface_culled += 1;
+                    continue;
+                }
+                Facing::Toward => item.facing = true,
+                Facing::Either => {}
+            }
+        }
+        let children = rec.children.get();
+        let size = view.projected_diameter_px(item.center, item.radius);
+        let mut draw = children == 0 || size <= threshold;
+        if !draw {
+            let first = Hierarchy::first_child(page, item.local as usize);
+            match h.header.page_of(first) {
+                Some(child_page_index) => match h.page(child_page_index) {
+                    Some(child_page) if Hierarchy::group_fits(child_page, first, children) => {
+                        for c in 0..children as u64 {
+                            let index = first + c;
+                            let local = (index - child_page.header.first_node) as usize;
+                            let child = h.record(child_page, local);
+                            let (center, radius) =
+                                sphere_codec::decode_sphere(item.center, item.radius, child.sphere);
+                            stack.push(Item {
+                                page: child_page_index as u32,
+                                local: local as u32,
+                                index,
+                                center,
+                                radius,
+                                ..item
+                            });
+                        }
+                    }
+                    Some(_) => draw = true,
+                    None => {
+                        draw = true;
+                        let off_center = view.distance_from_center(item.center);
+                        let priority = size.min(1e9) / (1.0 + off_center);
+                        let entry = wanted.entry(child_page_index as u32).or_insert(0.0);
+                        *entry = entry.max(priority);
+                    }
+                },
+                None => draw = true,
+            }
+        }
+        if draw {
+            cut.splats.push(Splat {
+                center: item.center,
+                radius: item.radius,
+                normal: h
+                    .layout
+                    .normals
+                    .then(|| sphere_codec::decode_normal(rec.normal)),
+                color: h
+                    .layout
+                    .color
+                    .then(|| sphere_codec::decode_color(rec.color)),
+                node: item.index,
+            });
+        }
+    }
+    cut.wanted = wanted
+        .into_iter()
+        .map(|(page, priority)| WantedPage { page, priority })
+        .collect();
+    cut.wanted
+        .sort_by(|a, b| b.priority.total_cmp(&a.priority).then(a.page.cmp(&b.page)));
+    cut
+}
+
+enum Facing {
+    Away,
+    Toward,
+    Either,
+}
+
+/// Normal-cone test: the directions from the sphere to the eye spread by
+/// asin(r / d); the cone's normals spread by its half-angle. Away when every
+/// such pair is more than 90 degrees apart, toward when every pair is less.
+fn facing(view: &View, center: DVec3, radius: f64, rec: &NodeRecord) -> Facing {
+    if rec.cone == 3 {
+        return Facing::Either;
+    }
+    let to_eye = view.eye - center;
+    let d = to_eye.length();
+    if d <= radius {
+        return Facing::Either;
+    }
+    let n = sphere_codec::decode_normal(rec.normal).as_dvec3();
+    let angle = n.dot(to_eye / d).clamp(-1.0, 1.0).acos();
+    let slack = sphere_codec::cone_half_angle(rec.cone) + (radius / d).asin();
+    let right = std::f64::consts::FRAC_PI_2;
+    if angle > right + slack {
+        Facing::Away
+    } else if angle + slack < right {
+        Facing::Toward
+    } else {
+        Facing::Either
+    }
+}

@@ -1,0 +1,166 @@
+//! Builders: a [`Scene`] in, a [`PagedFile`] out.
+//!
+//! The sphere builder runs in four steps, one module each:
+//! [`leaves`] (a sized, oriented sphere per vertex; [`knn`] for point
+//! clouds), [`tree`] (bisection into a 2-to-4-ary bounding-sphere tree),
+//! [`layout`] (top-down quantization and breadth-first pages). Writing the
+//! file is the [`store`](crate::store)'s job.
+
+pub mod knn;
+pub mod layout;
+pub mod leaves;
+pub mod tree;
+
+use std::time::Instant;
+
+use farfield_protocol::sphere_codec::NodeLayout;
+use glam::DVec3;
+pub use layout::PagedFile;
+
+use crate::scene::Scene;
+
+/// Default upper bound on a page's size: 16 KiB holds about 4000 nodes,
+/// small enough to stream in well under a millisecond on loopback and
+/// large enough that per-page headers cost under 0.01 bytes per node.
+pub const DEFAULT_PAGE_BYTES: usize = 16 * 1024;
+
+/// Knobs of a build.
+#[derive(Debug, Clone, Copy)]
+pub struct BuildOptions {
+    pub page_bytes: usize,
+    /// Keep (source vertex, node) pairs in [`PagedFile::leaf_sources`]; for
+    /// tests that follow vertices into the file.
+    pub record_leaf_sources: bool,
+}
+
+impl Default for BuildOptions {
+    fn default() -> Self {
+        Self {
+            page_bytes: DEFAULT_PAGE_BYTES,
+            record_leaf_sources: false,
+        }
+    }
+}
+
+/// What a build did, for `--json` summaries and benchmarks.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct BuildStats {
+    pub input_vertices: u64,
+    pub input_primitives: u64,
+    pub unreferenced_vertices: u64,
+    pub collapsed_duplicates: u64,
+    pub leaves: u64,
+    pub nodes: u64,
+    pub levels: u32,
+    pub pages: usize,
+    pub has_color: bool,
+    pub has_normals: bool,
+    pub seconds_leaves: f64,
+    pub seconds_tree: f64,
+    pub seconds_layout: f64,
+}
+
+/// Why a scene could not be built.
+#[derive(Debug, thiserror::Error)]
+pub enum BuildError {
+    #[error("the scene has no vertices to build from")]
+    Empty,
+    #[error("the scene has {0} vertices; this format holds at most 2^31 - 1 leaves")]
+    TooLarge(u64),
+}
+
+/// Builds the QSplat sphere hierarchy of a scene, consuming it (each
+/// geometry is freed as soon as its leaves exist).
+pub fn build_spheres(
+    scene: Scene,
+    options: &BuildOptions,
+) -> Result<(PagedFile, BuildStats), BuildError> {
+    let layout = NodeLayout {
+        normals: scene.has_orientation(),
+        color: scene.has_color(),
+    };
+    let input_primitives = scene.instanced_primitive_count();
+    let vertices = scene.instanced_vertex_count();
+    if vertices == 0 {
+        return Err(BuildError::Empty);
+    }
+    if vertices >= 1 << 31 {
+        return Err(BuildError::TooLarge(vertices));
+    }
+    let started = Instant::now();
+    let (mut leaf_list, leaf_stats) = leaves::make_leaves(scene, layout.color);
+    if leaf_list.is_empty() {
+        return Err(BuildError::Empty);
+    }
+    let (bounds_min, bounds_max) = bounds(&leaf_list);
+    apply_radius_floor(&mut leaf_list, bounds_max - bounds_min);
+    let seconds_leaves = started.elapsed().as_secs_f64();
+
+    let started = Instant::now();
+    let tree = tree::build_tree(leaf_list);
+    let collapsed_duplicates = tree.collapsed_duplicates;
+    let seconds_tree = started.elapsed().as_secs_f64();
+
+    let started = Instant::now();
+    let file = layout::lay_out(
+        tree,
+        layout::LayoutInput {
+            layout,
+            page_bytes: options.page_bytes,
+            input_vertices: leaf_stats.input_vertices,
+            bounds_min,
+            bounds_max,
+            record_leaf_sources: options.record_leaf_sources,
+        },
+    );
+    let seconds_layout = started.elapsed().as_secs_f64();
+    let stats = BuildStats {
+        input_vertices: leaf_stats.input_vertices,
+        input_primitives,
+        unreferenced_vertices: leaf_stats.unreferenced_vertices,
+        collapsed_duplicates,
+        leaves: file.header.leaves,
+        nodes: file.header.nodes,
+        levels: file.header.levels,
+        pages: file.pages.len(),
+        has_color: layout.color,
+        has_normals: layout.normals,
+        seconds_leaves,
+        seconds_tree,
+        seconds_layout,
+    };
+    Ok((file, stats))
+}
+
+fn bounds(leaves: &[leaves::Leaf]) -> (DVec3, DVec3) {
+    leaves
+        .iter()
+        .fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(lo, hi), l| {
+            (lo.min(l.position), hi.max(l.position))
+        })
+}
+
+/// Leaves of zero size (a lone point, a collapsed degenerate triangle) get
+/// the smallest radius another leaf has, else a millionth of the scene's
+/// extent, else 1 when the scene is a single point: a splat needs a size,
+/// and the quantizer a positive scale.
+fn apply_radius_floor(leaves: &mut [leaves::Leaf], extent: DVec3) {
+    let smallest = leaves
+        .iter()
+        .map(|l| l.radius)
+        .filter(|r| *r > 0.0)
+        .fold(f32::INFINITY, f32::min);
+    let diameter = extent.length();
+    let floor = if smallest.is_finite() {
+        smallest
+    } else if diameter > 0.0 {
+        leaves::round_up_f32(diameter * 1e-6)
+    } else {
+        1.0
+    };
+    for l in leaves.iter_mut() {
+        if l.radius.is_nan() || l.radius <= 0.0 {
+            l.radius = floor;
+        }
+    }
+}

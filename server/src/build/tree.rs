@@ -1,0 +1,437 @@
+//! The bounding-sphere tree over the leaves (QSplat 2.2's BuildTree).
+//!
+//! A range of leaves is split at the middle of its bounding box's longest
+//! axis (a bisection, as in the paper, so split planes stay centred and the
+//! quantized child positions stay accurate); each half is split once more,
+//! which gives every interior node 2 to 4 children and a branching factor
+//! near 4 without ever a single child. Leaves at one position collapse into
+//! one leaf. Bisection of pathological inputs (points spaced 2^-k apart)
+//! could recurse as deep as f64 allows, so past [`BISECT_DEPTH`] levels the
+//! split switches to the median, which bounds the depth by log2 of the
+//! count; the tree is never deeper than about 96 + 2 log2(n) binary splits.
+//!
+//! Interior spheres enclose their children's spheres; normals and colors are
+//! leaf-count-weighted averages; a normal cone covers the children's cones.
+
+use glam::{DVec3, Vec3};
+use rayon::join;
+
+use super::leaves::{Leaf, cone_from_u8, cone_to_u8, pack_normal, unpack_normal};
+
+/// Binary splits by bisection before falling back to median splits.
+pub const BISECT_DEPTH: u32 = 96;
+/// Ranges larger than this are built on two threads.
+const PARALLEL_MIN: usize = 50_000;
+
+/// A child or root: a leaf index (high bit set) or an interior-node index.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct NodeRef(u32);
+
+impl NodeRef {
+    const LEAF_BIT: u32 = 1 << 31;
+    pub fn leaf(i: usize) -> Self {
+        Self(i as u32 | Self::LEAF_BIT)
+    }
+    fn interior(i: usize) -> Self {
+        Self(i as u32)
+    }
+    /// `Ok(leaf index)` or `Err(interior index)`.
+    pub fn get(self) -> Result<usize, usize> {
+        if self.0 & Self::LEAF_BIT != 0 {
+            Ok((self.0 & !Self::LEAF_BIT) as usize)
+        } else {
+            Err(self.0 as usize)
+        }
+    }
+}
+
+/// An interior node of the tree being built.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Interior {
+    pub center: DVec3,
+    pub radius: f64,
+    pub normal: Vec3,
+    /// Normal-cone half-angle in radians.
+    pub cone: f32,
+    pub color: [u8; 3],
+    pub child_count: u8,
+    pub leaf_count: u32,
+    pub children: [NodeRef; 4],
+}
+
+/// The built tree: leaves (reordered) and interior nodes.
+#[derive(Debug)]
+pub struct Tree {
+    pub leaves: Vec<Leaf>,
+    pub interior: Vec<Interior>,
+    pub root: NodeRef,
+    /// Leaves that stand for several input points at one position.
+    pub collapsed_duplicates: u64,
+}
+
+/// The properties a parent needs of a child, whatever its kind.
+#[derive(Clone, Copy)]
+struct Summary {
+    center: DVec3,
+    radius: f64,
+    normal: DVec3,
+    cone: f64,
+    color: DVec3,
+    leaves: u32,
+}
+
+/// Builds the tree; `leaves` must not be empty.
+pub fn build_tree(mut leaves: Vec<Leaf>) -> Tree {
+    assert!(!leaves.is_empty(), "build_tree needs at least one leaf");
+    assert!(
+        leaves.len() < (1 << 31),
+        "too many leaves for 31-bit references"
+    );
+    let mut interior = Vec::with_capacity(leaves.len() / 2);
+    let (root, _, collapsed) = build_range(&mut leaves, 0, 0, &mut interior);
+    Tree {
+        leaves,
+        interior,
+        root,
+        collapsed_duplicates: collapsed,
+    }
+}
+
+/// Builds the subtree of `leaves` (which start at global index `base`),
+/// appending interior nodes to `out`. Returns the subtree's root, its
+/// summary, and how many leaves were collapsed as duplicates.
+fn build_range(
+    leaves: &mut [Leaf],
+    base: usize,
+    depth: u32,
+    out: &mut Vec<Interior>,
+) -> (NodeRef, Summary, u64) {
+    if leaves.len() == 1 {
+        return (NodeRef::leaf(base), leaf_summary(&leaves[0]), 0);
+    }
+    let (lo, hi) = bounds(leaves);
+    if lo == hi {
+        let collapsed = leaves.len() as u64 - 1;
+        collapse(leaves);
+        return (NodeRef::leaf(base), leaf_summary(&leaves[0]), collapsed);
+    }
+    // Split into two halves, then each half with more than one distinct
+    // position into two again: 2 to 4 child ranges.
+    let mid = split(leaves, lo, hi, depth);
+    let mut ranges: Vec<(usize, usize)> = Vec::with_capacity(4);
+    for (start, end) in [(0, mid), (mid, leaves.len())] {
+        let part = &mut leaves[start..end];
+        let (plo, phi) = bounds(part);
+        if part.len() > 1 && plo != phi {
+            let m = split(part, plo, phi, depth + 1);
+            ranges.push((start, start + m));
+            ranges.push((start + m, end));
+        } else {
+            ranges.push((start, end));
+        }
+    }
+    let mut children = [NodeRef::leaf(0); 4];
+    let mut summaries = Vec::with_capacity(4);
+    let mut collapsed = 0;
+    if leaves.len() >= PARALLEL_MIN {
+        // Build the child ranges on two threads, each into its own node list,
+        // then append those lists and shift their interior references.
+        let results = build_parallel(leaves, base, depth + 2, &ranges);
+        for (i, (child, summary, dup, mut nodes)) in results.into_iter().enumerate() {
+            let offset = out.len();
+            for node in &mut nodes {
+                for c in &mut node.children[..usize::from(node.child_count)] {
+                    if let Err(j) = c.get() {
+                        *c = NodeRef::interior(j + offset);
+                    }
+                }
+            }
+            out.append(&mut nodes);
+            children[i] = match child.get() {
+                Ok(_) => child,
+                Err(j) => NodeRef::interior(j + offset),
+            };
+            summaries.push(summary);
+            collapsed += dup;
+        }
+    } else {
+        for (i, &(start, end)) in ranges.iter().enumerate() {
+            let (child, summary, dup) =
+                build_range(&mut leaves[start..end], base + start, depth + 2, out);
+            children[i] = child;
+            summaries.push(summary);
+            collapsed += dup;
+        }
+    }
+    let (node, summary) = parent_of(&summaries, children);
+    out.push(node);
+    (NodeRef::interior(out.len() - 1), summary, collapsed)
+}
+
+type Built = (NodeRef, Summary, u64, Vec<Interior>);
+
+/// Builds 2 to 4 disjoint child ranges, split across two threads.
+fn build_parallel(
+    leaves: &mut [Leaf],
+    base: usize,
+    depth: u32,
+    ranges: &[(usize, usize)],
+) -> Vec<Built> {
+    fn one(leaves: &mut [Leaf], base: usize, depth: u32) -> Built {
+        let mut nodes = Vec::new();
+        let (r, s, d) = build_range(leaves, base, depth, &mut nodes);
+        (r, s, d, nodes)
+    }
+    fn many(
+        leaves: &mut [Leaf],
+        base: usize,
+        depth: u32,
+        ranges: &[(usize, usize)],
+        offset: usize,
+    ) -> Vec<Built> {
+        match ranges {
+            [] => Vec::new(),
+            [(s, e)] => vec![one(&mut leaves[s - offset..e - offset], base + s, depth)],
+            _ => {
+                let half = ranges.len() / 2;
+                let cut = ranges[half].0 - offset;
+                let (left, right) = leaves.split_at_mut(cut);
+                let (mut a, b) = join(
+                    || many(left, base, depth, &ranges[..half], offset),
+                    || many(right, base, depth, &ranges[half..], offset + cut),
+                );
+                a.extend(b);
+                a
+            }
+        }
+    }
+    many(leaves, base, depth, ranges, 0)
+}
+
+fn bounds(leaves: &[Leaf]) -> (DVec3, DVec3) {
+    let mut lo = DVec3::INFINITY;
+    let mut hi = DVec3::NEG_INFINITY;
+    for l in leaves {
+        lo = lo.min(l.position);
+        hi = hi.max(l.position);
+    }
+    (lo, hi)
+}
+
+/// Partitions `leaves` (not all at one position) and returns the split
+/// index, strictly inside the range.
+fn split(leaves: &mut [Leaf], lo: DVec3, hi: DVec3, depth: u32) -> usize {
+    let axis = (hi - lo).max_position();
+    if depth < BISECT_DEPTH {
+        let plane = lo[axis] + (hi[axis] - lo[axis]) * 0.5;
+        let mid = partition(leaves, |l| l.position[axis] < plane);
+        if mid > 0 && mid < leaves.len() {
+            return mid;
+        }
+    }
+    // Median split: balanced whatever the spacing. Equal coordinates may
+    // straddle the median, which is fine: both sides are non-empty.
+    let mid = leaves.len() / 2;
+    leaves.select_nth_unstable_by(mid, |a, b| a.position[axis].total_cmp(&b.position[axis]));
+    mid
+}
+
+/// In-place partition: elements satisfying `pred` first; returns their count.
+fn partition(leaves: &mut [Leaf], pred: impl Fn(&Leaf) -> bool) -> usize {
+    let mut first = 0;
+    let mut last = leaves.len();
+    loop {
+        while first < last && pred(&leaves[first]) {
+            first += 1;
+        }
+        while first < last && !pred(&leaves[last - 1]) {
+            last -= 1;
+        }
+        if first + 1 >= last {
+            return first;
+        }
+        leaves.swap(first, last - 1);
+        first += 1;
+        last -= 1;
+    }
+}
+
+/// Merges leaves at one position into `leaves[0]`: the largest radius, the
+/// averaged normal and color, a cone covering all of them.
+fn collapse(leaves: &mut [Leaf]) {
+    let summaries: Vec<Summary> = leaves.iter().map(leaf_summary).collect();
+    let merged = combine(&summaries);
+    let first = &mut leaves[0];
+    first.radius = leaves_max_radius(&summaries);
+    first.normal = pack_normal(merged.normal.as_vec3());
+    first.cone = cone_to_u8(merged.cone);
+    first.color = merged
+        .color
+        .round()
+        .to_array()
+        .map(|c| c.clamp(0.0, 255.0) as u8);
+}
+
+fn leaves_max_radius(s: &[Summary]) -> f32 {
+    s.iter().map(|s| s.radius as f32).fold(0.0, f32::max)
+}
+
+fn leaf_summary(l: &Leaf) -> Summary {
+    Summary {
+        center: l.position,
+        radius: f64::from(l.radius),
+        normal: unpack_normal(l.normal).as_dvec3(),
+        cone: cone_from_u8(l.cone),
+        color: DVec3::from(l.color.map(f64::from)),
+        leaves: 1,
+    }
+}
+
+/// Normal, cone and color of a set of children (center/radius not set).
+fn combine(children: &[Summary]) -> Summary {
+    let total: f64 = children.iter().map(|c| f64::from(c.leaves)).sum();
+    let weighted = |f: &dyn Fn(&Summary) -> DVec3| {
+        children
+            .iter()
+            .map(|c| f(c) * f64::from(c.leaves))
+            .sum::<DVec3>()
+            / total
+    };
+    let normal = weighted(&|c| c.normal)
+        .try_normalize()
+        .unwrap_or(children[0].normal);
+    let cone = children
+        .iter()
+        .map(|c| normal.dot(c.normal).clamp(-1.0, 1.0).acos() + c.cone)
+        .fold(0.0, f64::max)
+        .min(std::f64::consts::PI);
+    Summary {
+        center: DVec3::ZERO,
+        radius: 0.0,
+        normal,
+        cone,
+        color: weighted(&|c| c.color),
+        leaves: children.iter().map(|c| c.leaves).sum(),
+    }
+}
+
+/// The parent node of 2 to 4 children: the sphere around the box of their
+/// spheres, grown until it encloses each child in f64 arithmetic.
+fn parent_of(children: &[Summary], refs: [NodeRef; 4]) -> (Interior, Summary) {
+    let mut lo = DVec3::INFINITY;
+    let mut hi = DVec3::NEG_INFINITY;
+    for c in children {
+        lo = lo.min(c.center - c.radius);
+        hi = hi.max(c.center + c.radius);
+    }
+    let center = (lo + hi) * 0.5;
+    let mut radius = children
+        .iter()
+        .map(|c| center.distance(c.center) + c.radius)
+        .fold(0.0, f64::max);
+    // A hair of slack so rounding in later distance computations never puts
+    // a child outside: enclosure is what keeps splats hole-free.
+    radius += radius * 4.0 * f64::EPSILON + center.abs().max_element() * 4.0 * f64::EPSILON;
+    let mut s = combine(children);
+    s.center = center;
+    s.radius = radius;
+    let node = Interior {
+        center,
+        radius,
+        normal: s.normal.as_vec3(),
+        cone: s.cone as f32,
+        color: s
+            .color
+            .round()
+            .to_array()
+            .map(|c| c.clamp(0.0, 255.0) as u8),
+        child_count: children.len() as u8,
+        leaf_count: s.leaves,
+        children: refs,
+    };
+    (node, s)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn leaf(p: DVec3) -> Leaf {
+        Leaf {
+            position: p,
+            radius: 0.1,
+            normal: pack_normal(Vec3::Z),
+            color: [10, 20, 30],
+            cone: 0,
+            source: 0,
+        }
+    }
+
+    fn check(tree: &Tree, node: NodeRef, depth: u32, max_depth: &mut u32) -> u32 {
+        *max_depth = (*max_depth).max(depth);
+        match node.get() {
+            Ok(_) => 1,
+            Err(i) => {
+                let n = tree.interior[i];
+                assert!(
+                    (2..=4).contains(&n.child_count),
+                    "node with {} children",
+                    n.child_count
+                );
+                let mut count = 0;
+                for c in &n.children[..usize::from(n.child_count)] {
+                    let (cc, cr) = match c.get() {
+                        Ok(l) => (tree.leaves[l].position, f64::from(tree.leaves[l].radius)),
+                        Err(j) => (tree.interior[j].center, tree.interior[j].radius),
+                    };
+                    assert!(
+                        n.center.distance(cc) + cr <= n.radius,
+                        "child outside parent"
+                    );
+                    count += check(tree, *c, depth + 1, max_depth);
+                }
+                assert_eq!(count, n.leaf_count);
+                count
+            }
+        }
+    }
+
+    #[test]
+    fn random_points_give_a_valid_tree_on_any_thread_count() {
+        let mut x = 12345u64;
+        let mut rnd = || {
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            (x >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let leaves: Vec<Leaf> = (0..120_000)
+            .map(|_| leaf(DVec3::new(rnd(), rnd(), rnd() * 0.01)))
+            .collect();
+        let tree = build_tree(leaves);
+        let mut depth = 0;
+        assert_eq!(check(&tree, tree.root, 0, &mut depth), 120_000);
+        assert!(depth < 20, "depth {depth}");
+    }
+
+    #[test]
+    fn duplicates_collapse_and_exponential_spacing_stays_shallow() {
+        let tree = build_tree(vec![leaf(DVec3::ONE); 1_000_000]);
+        assert!(tree.root.get().is_ok());
+        assert_eq!(tree.collapsed_duplicates, 999_999);
+
+        let leaves: Vec<Leaf> = (0..2000)
+            .map(|i| {
+                leaf(DVec3::new(
+                    0.5f64.powi(i % 1000) * (1 + i / 1000) as f64,
+                    0.0,
+                    0.0,
+                ))
+            })
+            .collect();
+        let tree = build_tree(leaves);
+        let mut depth = 0;
+        check(&tree, tree.root, 0, &mut depth);
+        assert!(depth <= BISECT_DEPTH / 2 + 2 * 11 + 2, "depth {depth}");
+    }
+}

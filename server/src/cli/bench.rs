@@ -1,0 +1,132 @@
+//! `farfield-server bench`: build throughput and traversal rate, as medians
+//! of repeats taken in one process (these machines are noisy; compare
+//! ratios from one run, not absolute times across runs).
+
+use std::path::Path;
+use std::time::Instant;
+
+use farfield_protocol::camera::Camera;
+use farfield_protocol::traverse::{TraverseOptions, traverse};
+use serde_json::json;
+
+use super::build::load_inputs;
+use super::{Report, median, memory};
+use crate::build::{BuildOptions, build_spheres};
+use crate::import::Params;
+use crate::store::SceneFile;
+
+pub fn build(
+    inputs: &[String],
+    params: &[String],
+    repeats: usize,
+    as_json: bool,
+) -> anyhow::Result<Report> {
+    let params = Params::parse(params).map_err(anyhow::Error::msg)?;
+    let rss_start = memory::current_rss_bytes();
+    let (mut total, mut build_only) = (Vec::new(), Vec::new());
+    let mut vertices = 0;
+    let mut nodes = 0;
+    for _ in 0..repeats.max(1) {
+        let started = Instant::now();
+        let scene = load_inputs(inputs, &params)?;
+        vertices = scene.instanced_vertex_count();
+        let build_started = Instant::now();
+        let (file, stats) = build_spheres(scene, &BuildOptions::default())?;
+        nodes = stats.nodes;
+        build_only.push(build_started.elapsed().as_secs_f64());
+        total.push(started.elapsed().as_secs_f64());
+        drop(file);
+    }
+    let (t, b) = (median(&mut total), median(&mut build_only));
+    let peak = memory::peak_rss_bytes();
+    let json = json!({
+        "inputs": inputs,
+        "repeats": repeats.max(1),
+        "input_vertices": vertices,
+        "nodes": nodes,
+        "median_seconds_import_and_build": t,
+        "median_seconds_build": b,
+        "vertices_per_second_import_and_build": vertices as f64 / t,
+        "vertices_per_second_build": vertices as f64 / b,
+        "threads": rayon::current_num_threads(),
+        "rss_at_start_bytes": rss_start,
+        "peak_rss_bytes": peak,
+        "peak_rss_bytes_per_vertex": peak.map(|p| p as f64 / vertices as f64),
+        "peak_rss_above_start_bytes_per_vertex": peak.zip(rss_start).map(|(p, s)| p.saturating_sub(s) as f64 / vertices as f64),
+    });
+    let text = format!(
+        "{}: {} vertices, median {:.3} s import+build ({:.2} M vertices/s), {:.3} s build ({:.2} M vertices/s), peak RSS {} MiB ({:.1} bytes/vertex)",
+        inputs.join(" "),
+        vertices,
+        t,
+        vertices as f64 / t / 1e6,
+        b,
+        vertices as f64 / b / 1e6,
+        peak.unwrap_or(0) / (1 << 20),
+        peak.unwrap_or(0) as f64 / vertices as f64
+    );
+    Ok(Report {
+        json,
+        text,
+        exit_code: 0,
+        as_json,
+    })
+}
+
+pub fn traverse_file(file: &Path, repeats: usize, as_json: bool) -> anyhow::Result<Report> {
+    let scene = SceneFile::open(file)?;
+    let h = scene.load_all()?;
+    let header = &h.header;
+    let options = TraverseOptions {
+        threshold_px: 1.0,
+        backface_culling: true,
+        near_fraction: 1e-4,
+    };
+    let mut rates = Vec::new();
+    let mut visited = 0;
+    let mut splats = 0;
+    // An orbit at 3 radii: the whole model in view at a resolution where a
+    // 1-pixel cut reaches the leaves of most of it.
+    let camera = Camera::orbit(
+        header.root_center,
+        header.root_radius,
+        30.0,
+        25.0,
+        3.0,
+        4096,
+        4096,
+    );
+    for _ in 0..repeats.max(1) {
+        let started = Instant::now();
+        let cut = traverse(&h, &camera, &options);
+        let seconds = started.elapsed().as_secs_f64();
+        visited = cut.visited;
+        splats = cut.splats.len();
+        rates.push(cut.visited as f64 / seconds);
+    }
+    let rate = median(&mut rates);
+    let json = json!({
+        "file": file,
+        "nodes": header.nodes,
+        "visited": visited,
+        "splats": splats,
+        "repeats": repeats.max(1),
+        "median_nodes_per_second": rate,
+        "min_nodes_per_second": rates.first(),
+        "max_nodes_per_second": rates.last(),
+    });
+    let text = format!(
+        "{}: visited {visited} of {} nodes, {splats} splats; median {:.1} M nodes/s (range {:.1}..{:.1})",
+        file.display(),
+        header.nodes,
+        rate / 1e6,
+        rates.first().copied().unwrap_or(0.0) / 1e6,
+        rates.last().copied().unwrap_or(0.0) / 1e6
+    );
+    Ok(Report {
+        json,
+        text,
+        exit_code: 0,
+        as_json,
+    })
+}

@@ -1,0 +1,87 @@
+//! `farfield-server build`: inputs -> scene -> hierarchy -> file.
+
+use std::io::IsTerminal;
+use std::time::Instant;
+
+use anyhow::Context;
+use indicatif::{ProgressBar, ProgressStyle};
+use serde_json::json;
+
+use super::{BuildArgs, Report, memory};
+use crate::build::{BuildOptions, build_spheres};
+use crate::import::{Params, load_input};
+use crate::scene::Scene;
+use crate::store::write_atomic;
+
+pub fn run(args: &BuildArgs) -> anyhow::Result<Report> {
+    let params = Params::parse(&args.params).map_err(anyhow::Error::msg)?;
+    let progress = if args.json || !std::io::stderr().is_terminal() {
+        ProgressBar::hidden()
+    } else {
+        let bar = ProgressBar::new_spinner();
+        bar.set_style(
+            ProgressStyle::with_template("{spinner} {elapsed_precise} {msg}")
+                .unwrap_or_else(|_| ProgressStyle::default_spinner()),
+        );
+        bar.enable_steady_tick(std::time::Duration::from_millis(100));
+        bar
+    };
+    let started = Instant::now();
+    progress.set_message("importing");
+    let scene = load_inputs(&args.inputs, &params)?;
+    let seconds_import = started.elapsed().as_secs_f64();
+    progress.set_message(format!(
+        "building {} vertices",
+        scene.instanced_vertex_count()
+    ));
+    let build_started = Instant::now();
+    let options = BuildOptions {
+        page_bytes: args.page_bytes,
+        ..BuildOptions::default()
+    };
+    let (file, stats) = build_spheres(scene, &options)
+        .with_context(|| format!("building {}", args.inputs.join(" ")))?;
+    let seconds_build = build_started.elapsed().as_secs_f64();
+    progress.set_message(format!("writing {}", args.out.display()));
+    let bytes = write_atomic(&args.out, &file)?;
+    progress.finish_and_clear();
+    let seconds = started.elapsed().as_secs_f64();
+    let json = json!({
+        "out": args.out,
+        "kind": "spheres",
+        "file_bytes": bytes,
+        "bytes_per_node": bytes as f64 / stats.nodes as f64,
+        "seconds": seconds,
+        "seconds_import": seconds_import,
+        "seconds_build": seconds_build,
+        "vertices_per_second": stats.input_vertices as f64 / seconds,
+        "peak_rss_bytes": memory::peak_rss_bytes(),
+        "stats": stats,
+    });
+    let text = format!(
+        "{}: {} nodes ({} leaves, {} levels) in {} pages, {} bytes ({:.2} bytes/node), {:.2} s",
+        args.out.display(),
+        stats.nodes,
+        stats.leaves,
+        stats.levels,
+        stats.pages,
+        bytes,
+        bytes as f64 / stats.nodes as f64,
+        seconds
+    );
+    Ok(Report {
+        json,
+        text,
+        exit_code: 0,
+        as_json: args.json,
+    })
+}
+
+/// Loads and merges every input into one scene.
+pub(crate) fn load_inputs(inputs: &[String], params: &Params) -> anyhow::Result<Scene> {
+    let mut scene = Scene::default();
+    for input in inputs {
+        scene.merge(load_input(input, params)?);
+    }
+    Ok(scene)
+}

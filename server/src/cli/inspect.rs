@@ -1,0 +1,59 @@
+//! `farfield-server inspect`: counts, attributes and a checksum of every page.
+
+use serde_json::json;
+
+use super::{InspectArgs, Report};
+use crate::store::SceneFile;
+
+pub fn run(args: &InspectArgs) -> anyhow::Result<Report> {
+    let file = SceneFile::open(&args.file)?;
+    let h = &file.header;
+    let corrupt = file.corrupt_pages();
+    let first_page_nodes = h.pages.first().map_or(0, |p| p.node_count);
+    let json = json!({
+        "file": args.file,
+        "kind": h.kind.name(),
+        "format_version": farfield_protocol::file::FORMAT_VERSION,
+        "nodes": h.nodes,
+        "leaves": h.leaves,
+        "levels": h.levels,
+        "input_vertices": h.input_vertices,
+        "has_color": h.attributes.color,
+        "has_normals": h.attributes.normals,
+        "node_bytes": h.node_bytes,
+        "pages": h.pages.len(),
+        "page_bytes_max": h.pages.iter().map(|p| p.length).max().unwrap_or(0),
+        "first_page_nodes": first_page_nodes,
+        "first_page_levels": h.pages.first().map_or(0, |p| u32::from(p.level_max) + 1),
+        "file_bytes": file.len(),
+        "bytes_per_node": file.len() as f64 / h.nodes as f64,
+        "bounds_min": h.bounds_min.to_array(),
+        "bounds_max": h.bounds_max.to_array(),
+        "root_center": h.root_center.to_array(),
+        "root_radius": h.root_radius,
+        "corrupt_pages": corrupt.len(),
+        "corrupt": corrupt.iter().map(|(i, e)| json!({"page": i, "error": e.to_string()})).collect::<Vec<_>>(),
+    });
+    let mut text = format!(
+        "{}: {} hierarchy, {} nodes ({} leaves), {} levels, color {}, normals {}, {} pages, {} bytes ({:.2} bytes/node)",
+        args.file.display(),
+        h.kind.name(),
+        h.nodes,
+        h.leaves,
+        h.levels,
+        h.attributes.color,
+        h.attributes.normals,
+        h.pages.len(),
+        file.len(),
+        file.len() as f64 / h.nodes as f64
+    );
+    for (i, e) in &corrupt {
+        text.push_str(&format!("\ncorrupt page {i}: {e}"));
+    }
+    Ok(Report {
+        json,
+        text,
+        exit_code: if corrupt.is_empty() { 0 } else { 2 },
+        as_json: args.json,
+    })
+}

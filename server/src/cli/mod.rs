@@ -1,0 +1,124 @@
+//! The `farfield-server` command line, as a library so tests run the same
+//! code in-process. Each subcommand has its own module and returns a
+//! [`Report`]: a JSON value (printed with `--json`), a human summary, and
+//! an exit code. `main.rs` only parses, prints and exits.
+
+mod bench;
+mod build;
+mod inspect;
+pub mod memory;
+
+use std::path::PathBuf;
+
+use clap::{Parser, Subcommand};
+
+/// Import, build and inspect farfield hierarchies.
+#[derive(Debug, Parser)]
+#[command(name = "farfield-server", version, about)]
+pub struct Cli {
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+#[derive(Debug, Subcommand)]
+pub enum Command {
+    /// Build a paged hierarchy file from one or more inputs (merged into one scene).
+    Build(BuildArgs),
+    /// Print a file's counts and verify every page checksum.
+    Inspect(InspectArgs),
+    /// Measure build throughput or traversal rate.
+    #[command(subcommand)]
+    Bench(BenchCommand),
+}
+
+#[derive(Debug, clap::Args)]
+pub struct BuildArgs {
+    /// Input files (.obj .ply .off .las .laz .pdb) or generated scenes (gen:island, gen:tree).
+    #[arg(required = true)]
+    pub inputs: Vec<String>,
+    /// The file to write (written to a temporary file, then renamed).
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Generator parameters, `key=value` (e.g. trees=64, seed=3).
+    #[arg(long = "param", value_name = "KEY=VALUE")]
+    pub params: Vec<String>,
+    /// Upper bound on a page's bytes.
+    #[arg(long, default_value_t = crate::build::DEFAULT_PAGE_BYTES)]
+    pub page_bytes: usize,
+    /// Print one JSON summary object on stdout and no progress bar.
+    #[arg(long)]
+    pub json: bool,
+}
+
+#[derive(Debug, clap::Args)]
+pub struct InspectArgs {
+    pub file: PathBuf,
+    #[arg(long)]
+    pub json: bool,
+}
+
+#[derive(Debug, Subcommand)]
+pub enum BenchCommand {
+    /// Import and build inputs repeatedly (nothing written); median throughput and peak memory.
+    Build {
+        #[arg(required = true)]
+        inputs: Vec<String>,
+        #[arg(long = "param", value_name = "KEY=VALUE")]
+        params: Vec<String>,
+        #[arg(long, default_value_t = 3)]
+        repeats: usize,
+        #[arg(long)]
+        json: bool,
+    },
+    /// Traverse a whole file at a 1-pixel threshold on one core; median nodes per second.
+    Traverse {
+        file: PathBuf,
+        #[arg(long, default_value_t = 9)]
+        repeats: usize,
+        #[arg(long)]
+        json: bool,
+    },
+}
+
+/// What a command produced.
+#[derive(Debug)]
+pub struct Report {
+    pub json: serde_json::Value,
+    pub text: String,
+    pub exit_code: u8,
+    /// Whether the caller asked for JSON on stdout.
+    pub as_json: bool,
+}
+
+/// Runs one parsed command line.
+pub fn run(cli: Cli) -> anyhow::Result<Report> {
+    match cli.command {
+        Command::Build(args) => build::run(&args),
+        Command::Inspect(args) => inspect::run(&args),
+        Command::Bench(BenchCommand::Build {
+            inputs,
+            params,
+            repeats,
+            json,
+        }) => bench::build(&inputs, &params, repeats, json),
+        Command::Bench(BenchCommand::Traverse {
+            file,
+            repeats,
+            json,
+        }) => bench::traverse_file(&file, repeats, json),
+    }
+}
+
+/// Median of a non-empty list of samples.
+pub(crate) fn median(samples: &mut [f64]) -> f64 {
+    samples.sort_by(f64::total_cmp);
+    let n = samples.len();
+    if n == 0 {
+        return f64::NAN;
+    }
+    if n % 2 == 1 {
+        samples[n / 2]
+    } else {
+        (samples[n / 2 - 1] + samples[n / 2]) * 0.5
+    }
+}

@@ -1,0 +1,16 @@
+//! farfield-server: everything between an input file and the bytes a client
+//! receives.
+//!
+//! - [`scene`]: the in-memory [`scene::Scene`] all importers produce.
+//! - [`import`]: OBJ, PLY, OFF, LAS/LAZ, PDB and the `gen:` generators.
+//! - [`build`]: the QSplat bounding-sphere builder: leaf sizing, tree,
+//!   quantization and the breadth-first page layout.
+//! - [`cli`]: the `farfield-server` subcommands, callable in-process.
+//! - [`store`]: writes the paged file atomically and reads it back through a
+//!   memory map, verifying page checksums.
+
+pub mod build;
+pub mod cli;
+pub mod import;
+pub mod scene;
+pub mod store;

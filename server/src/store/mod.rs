@@ -1,0 +1,167 @@
+//! The paged file on disk: written atomically, read through a memory map.
+//!
+//! [`write_atomic`] writes to a temporary file beside the target and renames
+//! it into place only after everything is on disk, so a failed or
+//! interrupted build never leaves a half file under the target's name.
+//! [`SceneFile`] maps a file and hands out page bytes, verified on request.
+
+use std::fs::File;
+use std::io::{BufWriter, Write};
+use std::path::{Path, PathBuf};
+
+use farfield_protocol::FormatError;
+use farfield_protocol::file::FileHeader;
+use farfield_protocol::page::Page;
+use memmap2::Mmap;
+
+use crate::build::PagedFile;
+
+/// Why a file could not be written or read.
+#[derive(Debug, thiserror::Error)]
+pub enum StoreError {
+    #[error("{path}: {source}")]
+    Io {
+        path: PathBuf,
+        source: std::io::Error,
+    },
+    #[error("{path}: {source}")]
+    Format { path: PathBuf, source: FormatError },
+}
+
+/// Writes `file` to `path` through a temporary file and a rename.
+pub fn write_atomic(path: &Path, file: &PagedFile) -> Result<u64, StoreError> {
+    let io = |source| StoreError::Io {
+        path: path.to_owned(),
+        source,
+    };
+    let dir = path
+        .parent()
+        .filter(|p| !p.as_os_str().is_empty())
+        .unwrap_or(Path::new("."));
+    let name = path
+        .file_name()
+        .ok_or_else(|| io(std::io::Error::other("no file name")))?;
+    let tmp = dir.join(format!(
+        ".{}.tmp-{}",
+        name.to_string_lossy(),
+        std::process::id()
+    ));
+    let result = (|| -> std::io::Result<u64> {
+        let mut out = BufWriter::new(File::create(&tmp)?);
+        let header = file.header.encode();
+        out.write_all(&header)?;
+        let mut written = header.len() as u64;
+        for page in &file.pages {
+            out.write_all(page)?;
+            written += page.len() as u64;
+        }
+        out.into_inner().map_err(|e| e.into_error())?.sync_all()?;
+        std::fs::rename(&tmp, path)?;
+        Ok(written)
+    })();
+    if result.is_err() {
+        let _ = std::fs::remove_file(&tmp);
+    }
+    result.map_err(io)
+}
+
+/// A paged file opened for reading.
+#[derive(Debug)]
+pub struct SceneFile {
+    pub path: PathBuf,
+    pub header: FileHeader,
+    map: Mmap,
+}
+
+impl SceneFile {
+    /// Maps `path` and parses its header (pages are verified on use).
+    pub fn open(path: &Path) -> Result<Self, StoreError> {
+        let file = File::open(path).map_err(|source| StoreError::Io {
+            path: path.to_owned(),
+            source,
+        })?;
+        // SAFETY: the map is read-only and farfield never writes a file in
+        // place (builds write a new file and rename it over the old one), so
+        // the mapped bytes do not change under us. If another process
+        // truncates the file anyway, reads past the new end raise SIGBUS; that
+        // is the documented hazard of memory maps and not something a reader
+        // can guard against without giving up the map.
+        let map = unsafe { Mmap::map(&file) }.map_err(|source| StoreError::Io {
+            path: path.to_owned(),
+            source,
+        })?;
+        let header = FileHeader::decode(&map).map_err(|source| StoreError::Format {
+            path: path.to_owned(),
+            source,
+        })?;
+        let scene = Self {
+            path: path.to_owned(),
+            header,
+            map,
+        };
+        if scene.header.file_len() > scene.map.len() as u64 {
+            return Err(StoreError::Format {
+                path: path.to_owned(),
+                source: FormatError::Truncated {
+                    what: "file",
+                    needed: scene.header.file_len(),
+                    have: scene.map.len() as u64,
+                },
+            });
+        }
+        Ok(scene)
+    }
+
+    /// The stored bytes of page `index` (unverified), as sent on the wire.
+    pub fn page_bytes(&self, index: usize) -> Option<&[u8]> {
+        let e = self.header.pages.get(index)?;
+        let start = usize::try_from(e.offset).ok()?;
+        self.map.get(start..start.checked_add(e.length as usize)?)
+    }
+
+    /// Checks page `index`'s checksum and header.
+    pub fn verify_page(&self, index: usize) -> Result<(), FormatError> {
+        let bytes = self.page_bytes(index).ok_or(FormatError::BadPage {
+            page: index as u32,
+            message: "outside the file".into(),
+        })?;
+        let page = Page::parse(bytes, index as u32, self.header.node_bytes)?;
+        if page.header.first_node != self.header.pages[index].first_node {
+            return Err(FormatError::BadPage {
+                page: index as u32,
+                message: "disagrees with the directory".into(),
+            });
+        }
+        Ok(())
+    }
+
+    /// Indices of pages that fail verification, with the reason.
+    pub fn corrupt_pages(&self) -> Vec<(usize, FormatError)> {
+        (0..self.header.pages.len())
+            .filter_map(|i| self.verify_page(i).err().map(|e| (i, e)))
+            .collect()
+    }
+
+    /// Bytes of the whole file.
+    pub fn len(&self) -> u64 {
+        self.map.len() as u64
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.map.is_empty()
+    }
+
+    /// Every page made resident in a fresh hierarchy; corrupt pages are
+    /// reported, not loaded.
+    pub fn load_all(&self) -> Result<farfield_protocol::hierarchy::Hierarchy, FormatError> {
+        let mut h = farfield_protocol::hierarchy::Hierarchy::new(self.header.clone())?;
+        for i in 0..self.header.pages.len() {
+            let bytes = self.page_bytes(i).ok_or(FormatError::BadPage {
+                page: i as u32,
+                message: "outside the file".into(),
+            })?;
+            h.insert_page(i as u32, bytes)?;
+        }
+        Ok(h)
+    }
+}

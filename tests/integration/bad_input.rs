@@ -1,0 +1,124 @@
+//! Bad input gets a clear one-line error naming the input and the element,
+//! or is handled; never a panic, a hang, or a half-written file.
+
+use std::path::Path;
+
+use farfield_server::import::{Params, load_input};
+use farfield_server::scene::{Geometry, Primitives, Scene};
+use farfield_tests::{scratch, shared_data};
+use glam::DVec3;
+
+use crate::{build, cli, resident};
+
+fn error_of(input: &Path) -> String {
+    match load_input(input.to_str().unwrap(), &Params::default()) {
+        Ok(_) => panic!("{} should not load", input.display()),
+        Err(e) => e.to_string(),
+    }
+}
+
+/// A failed build writes nothing at the target and leaves no temporary file.
+fn assert_build_fails_cleanly(dir: &Path, input: &Path, expect: &[&str]) {
+    let out = dir.join("out.ff");
+    let err = cli(&[
+        "build",
+        input.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ])
+    .unwrap_err();
+    let message = format!("{err:#}");
+    for e in expect {
+        assert!(message.contains(e), "error '{message}' lacks '{e}'");
+    }
+    assert!(!message.contains('\n'), "error is not one line: {message}");
+    assert!(!out.exists(), "half file left at {}", out.display());
+    let leftovers: Vec<_> = std::fs::read_dir(dir)
+        .unwrap()
+        .filter_map(Result::ok)
+        .filter(|e| e.file_name().to_string_lossy().contains(".tmp"))
+        .collect();
+    assert!(leftovers.is_empty(), "temporary files left: {leftovers:?}");
+}
+
+#[test]
+fn missing_and_unknown_inputs() {
+    let dir = scratch("missing");
+    assert_build_fails_cleanly(&dir, &dir.join("nope.obj"), &["nope.obj"]);
+    std::fs::write(dir.join("scene.xyz"), "1 2 3\n").unwrap();
+    assert_build_fails_cleanly(
+        &dir,
+        &dir.join("scene.xyz"),
+        &["scene.xyz", "unknown input format"],
+    );
+}
+
+#[test]
+fn truncated_binary_ply_names_the_element() {
+    let Some(data) = shared_data() else { return };
+    let dir = scratch("truncated");
+    let bytes = std::fs::read(data.join("horse.ply")).unwrap();
+    let cut = dir.join("horse.ply");
+    std::fs::write(&cut, &bytes[..bytes.len() * 2 / 3]).unwrap();
+    let e = error_of(&cut);
+    assert!(e.contains("horse.ply") && e.contains("face"), "{e}");
+    assert_build_fails_cleanly(&dir, &cut, &["horse.ply"]);
+}
+
+#[test]
+fn out_of_range_index_nan_and_empty_files() {
+    let dir = scratch("malformed");
+    let bad_index = dir.join("bad_index.obj");
+    std::fs::write(&bad_index, "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 7\n").unwrap();
+    let e = error_of(&bad_index);
+    assert!(e.contains("bad_index.obj") && e.contains("line 4"), "{e}");
+
+    let nan = dir.join("nan.off");
+    std::fs::write(&nan, "OFF\n3 1 0\n0 0 0\n1 nan 0\n0 1 0\n3 0 1 2\n").unwrap();
+    let e = error_of(&nan);
+    assert!(e.contains("nan.off") && e.contains("vertex 1"), "{e}");
+
+    let inf = dir.join("inf.obj");
+    std::fs::write(&inf, "v 0 0 0\nv 1 0 inf\nv 0 1 0\nf 1 2 3\n").unwrap();
+    assert!(error_of(&inf).contains("vertex 1"));
+
+    let empty = dir.join("empty.obj");
+    std::fs::write(&empty, "# nothing here\n").unwrap();
+    assert!(error_of(&empty).contains("no geometry"));
+    assert_build_fails_cleanly(&dir, &empty, &["empty.obj", "no geometry"]);
+}
+
+#[test]
+fn identical_duplicate_and_degenerate_inputs_are_handled() {
+    // A million copies of one point: collapse into one leaf, quickly.
+    let scene = Scene::single(Geometry::new(
+        "dups",
+        vec![DVec3::new(1.0, 2.0, 3.0); 1_000_000],
+        Primitives::Points,
+    ));
+    let file = build(scene);
+    assert_eq!(file.header.leaves, 1);
+    assert_eq!(file.header.input_vertices, 1_000_000);
+
+    // Zero-area triangles: every vertex of a collinear strip or a point.
+    let positions = vec![
+        DVec3::ZERO,
+        DVec3::X,
+        DVec3::X * 2.0,
+        DVec3::ONE,
+        DVec3::ONE,
+        DVec3::ONE,
+    ];
+    let scene = Scene::single(Geometry::new(
+        "flat",
+        positions,
+        Primitives::Triangles(vec![[0, 1, 2], [3, 4, 5]]),
+    ));
+    let file = build(scene);
+    let nodes = resident(&file).decode_all();
+    assert_eq!(
+        file.header.leaves, 4,
+        "three distinct points on the line plus the collapsed point"
+    );
+    assert!(nodes.iter().all(|n| n.center.is_finite() && n.radius > 0.0));
+}

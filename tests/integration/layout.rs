@@ -1,0 +1,103 @@
+//! The breadth-first paged layout: page 0 is the coarse model, children
+//! only point forward, and a flipped bit anywhere is caught.
+
+use farfield_server::import::{Params, load_input};
+use farfield_tests::scratch;
+
+use crate::{build, cli, resident, write_and_open};
+
+fn island() -> farfield_server::build::PagedFile {
+    let mut params = Params::default();
+    params.set("size", 128);
+    params.set("trees", 4);
+    build(load_input("gen:island", &params).expect("gen:island"))
+}
+
+#[test]
+fn page_zero_holds_whole_first_levels_and_children_point_forward() {
+    let file = island();
+    let h = resident(&file);
+    let nodes = h.decode_all();
+    assert_eq!(
+        nodes.len() as u64,
+        file.header.nodes,
+        "every node reachable"
+    );
+    let page0 = &file.header.pages[0];
+    assert!(
+        page0.level_max >= 3,
+        "page 0 holds only levels 0..={}",
+        page0.level_max
+    );
+    assert!(
+        file.header.pages.len() > 1,
+        "test scene should need several pages"
+    );
+    for n in &nodes {
+        let in_page0 = n.index < u64::from(page0.node_count);
+        assert_eq!(
+            in_page0,
+            n.level <= u32::from(page0.level_max),
+            "node {} at level {}",
+            n.index,
+            n.level
+        );
+        if n.children > 0 {
+            assert!(
+                n.first_child > n.index,
+                "node {} points back to {}",
+                n.index,
+                n.first_child
+            );
+        }
+    }
+    // Breadth-first: levels never decrease along the file.
+    assert!(
+        nodes
+            .windows(2)
+            .all(|w| w[0].index + 1 == w[1].index && w[0].level <= w[1].level)
+    );
+    for p in &file.pages {
+        assert!(p.len() <= farfield_server::build::DEFAULT_PAGE_BYTES);
+    }
+}
+
+#[test]
+fn a_flipped_bit_in_any_page_is_reported_by_inspect() {
+    let dir = scratch("flip");
+    let path = dir.join("island.ff");
+    let file = island();
+    let scene = write_and_open(&file, &path);
+    let report = cli(&["inspect", path.to_str().unwrap(), "--json"]).unwrap();
+    assert_eq!(report.json["corrupt_pages"], 0);
+    assert_eq!(report.exit_code, 0);
+    let original = std::fs::read(&path).unwrap();
+    for (i, entry) in scene.header.pages.iter().enumerate() {
+        // A different bit in each page: header, records and checksum bytes.
+        let byte = entry.offset as usize + (i * 7919) % entry.length as usize;
+        let mut bytes = original.clone();
+        bytes[byte] ^= 1 << (i % 8);
+        let bad = dir.join(format!("bad{i}.ff"));
+        std::fs::write(&bad, &bytes).unwrap();
+        let report = cli(&["inspect", bad.to_str().unwrap(), "--json"]).unwrap();
+        assert_eq!(report.json["corrupt_pages"], 1, "page {i}, byte {byte}");
+        assert_eq!(report.json["corrupt"][0]["page"], i);
+        assert_eq!(report.exit_code, 2);
+    }
+    // A flipped bit in the header is a clear error, not a misread.
+    let mut bytes = original.clone();
+    bytes[40] ^= 4;
+    std::fs::write(dir.join("badheader.ff"), &bytes).unwrap();
+    let err = cli(&["inspect", dir.join("badheader.ff").to_str().unwrap()]).unwrap_err();
+    assert!(err.to_string().contains("header checksum"), "{err}");
+}
+
+#[test]
+fn file_size_and_attribute_bits_follow_the_scene() {
+    let file = island();
+    assert!(file.header.attributes.color && file.header.attributes.normals);
+    assert_eq!(file.header.node_bytes, 6);
+    let bytes: usize = file.header.encode().len() + file.pages.iter().map(Vec::len).sum::<usize>();
+    let per_node = bytes as f64 / file.header.nodes as f64;
+    assert!(per_node <= 6.5, "{per_node} bytes per node with color");
+}

@@ -1,0 +1,52 @@
+//! farfield's one integration test binary: each module covers one area,
+//! against real files and the real command line (run in-process).
+
+mod bad_input;
+mod extremes;
+mod holes;
+mod layout;
+mod real_data;
+
+use std::path::Path;
+
+use clap::Parser;
+use farfield_protocol::hierarchy::Hierarchy;
+use farfield_server::build::{BuildOptions, PagedFile, build_spheres};
+use farfield_server::cli::{Cli, Report, run};
+use farfield_server::scene::Scene;
+use farfield_server::store::{SceneFile, write_atomic};
+
+/// Runs `farfield-server ARGS...` in-process.
+pub fn cli(args: &[&str]) -> anyhow::Result<Report> {
+    run(Cli::try_parse_from(
+        std::iter::once("farfield-server").chain(args.iter().copied()),
+    )?)
+}
+
+/// Builds a scene in memory with leaf sources recorded.
+pub fn build(scene: Scene) -> PagedFile {
+    build_spheres(
+        scene,
+        &BuildOptions {
+            record_leaf_sources: true,
+            ..BuildOptions::default()
+        },
+    )
+    .expect("build")
+    .0
+}
+
+/// Every page of a built file made resident, through the real page parser.
+pub fn resident(file: &PagedFile) -> Hierarchy {
+    let mut h = Hierarchy::new(file.header.clone()).expect("header");
+    for (i, page) in file.pages.iter().enumerate() {
+        h.insert_page(i as u32, page).expect("page");
+    }
+    h
+}
+
+/// Writes a built file and opens it again, as a reader would.
+pub fn write_and_open(file: &PagedFile, path: &Path) -> SceneFile {
+    write_atomic(path, file).expect("write");
+    SceneFile::open(path).expect("open")
+}

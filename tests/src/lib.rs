@@ -1,0 +1,39 @@
+//! Helpers shared by farfield's integration tests.
+//!
+//! [`shared_data`] finds the real scans in `../shared/data` (or wherever
+//! `FARFIELD_DATA` points). A user's clone has no such folder: tests that
+//! need it print that they were skipped and pass. CI sets
+//! `FARFIELD_REQUIRE_DATA=1`, which turns a missing folder into a failure,
+//! so CI can never go green without having run them.
+
+use std::path::PathBuf;
+
+/// The folder of shared test data, or `None` (after printing why) when it
+/// is absent and not required.
+pub fn shared_data() -> Option<PathBuf> {
+    let dir = std::env::var_os("FARFIELD_DATA")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../shared/data"));
+    if dir.join("stanford-bunny.obj").is_file() {
+        return Some(dir);
+    }
+    if std::env::var_os("FARFIELD_REQUIRE_DATA").is_some_and(|v| v == "1") {
+        panic!(
+            "FARFIELD_REQUIRE_DATA=1 but the shared data is not at {}",
+            dir.display()
+        );
+    }
+    eprintln!(
+        "SKIPPED: shared test data not found at {} (set FARFIELD_DATA to run these tests)",
+        dir.display()
+    );
+    None
+}
+
+/// A fresh, empty scratch folder for one test.
+pub fn scratch(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("farfield-test-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).expect("create scratch folder");
+    dir
+}
