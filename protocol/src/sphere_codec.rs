@@ -101,6 +101,15 @@ pub struct NodeRecord {
 }
 
 impl NodeRecord {
+    /// A leaf with every field zero: a placeholder, not a valid node.
+    pub const EMPTY: Self = Self {
+        sphere: 0,
+        children: ChildCount::LEAF,
+        normal: 0,
+        cone: 0,
+        color: 0,
+    };
+
     /// Packs the record into the low [`NodeLayout::bits`] of a u64.
     pub fn pack(&self, layout: NodeLayout) -> u64 {
         let mut w = u64::from(self.sphere & 0x1fff) | self.children.code() << 13;
@@ -242,9 +251,9 @@ pub fn encode_sphere(
     for reach in [0, 2, STEPS] {
         // (smallest radius step, i, j, k) of each grid point nearby whose
         // sphere at that step would be valid, smallest step first.
-        // On the stack for the first two blocks, which serve all but a
-        // handful of children per million; the heap for the whole grid.
-        let mut small = [(0, 0, 0, 0); 125];
+        // On the stack for the first block, which serves all but a few
+        // hundred children per million; the heap for the larger ones.
+        let mut small = [(0, 0, 0, 0); 8];
         let mut large = Vec::new();
         let mut count = 0;
         // First only the nearest grid point and its neighbours toward the
@@ -270,7 +279,7 @@ pub fn encode_sphere(
                     let slack = STEPS - l0;
                     // Integer validity: a larger step is only less valid.
                     if slack >= 0 && 4 * (i * i + j * j + k * k) <= slack * slack {
-                        if reach <= 2 {
+                        if reach == 0 {
                             small[count] = (l0, i, j, k);
                             count += 1;
                         } else {
@@ -320,9 +329,6 @@ pub fn encode_sphere(
 fn warp(g: f64) -> f64 {
     (g * std::f64::consts::FRAC_PI_4).tan()
 }
-fn unwarp(u: f64) -> f64 {
-    u.atan() / std::f64::consts::FRAC_PI_4
-}
 
 /// The 16224 representable normals, indexed by code.
 pub fn normal_table() -> &'static [Vec3] {
@@ -348,6 +354,20 @@ pub fn normal_table() -> &'static [Vec3] {
     })
 }
 
+/// Cell boundaries of the warped grid on a cube face, in face coordinates:
+/// `warp(-1 + 2 i / 52)` for i = 0..=52. Finding a coordinate's cell by
+/// search over these replaces an arctangent per component.
+fn normal_cell_edges() -> &'static [f64; NORMAL_GRID as usize + 1] {
+    static EDGES: OnceLock<[f64; NORMAL_GRID as usize + 1]> = OnceLock::new();
+    EDGES.get_or_init(|| {
+        std::array::from_fn(|i| warp(i as f64 / f64::from(NORMAL_GRID) * 2.0 - 1.0))
+    })
+}
+
+/// The largest angle (radians) between a unit normal and its decoded code,
+/// measured over the grid's cell corners; `tests` check it against samples.
+pub const MAX_NORMAL_ERROR: f64 = 0.024;
+
 /// Quantizes a unit normal to 14 bits. A zero or non-finite normal encodes
 /// as +Z (callers give such nodes a full cone, so it is never culled).
 pub fn encode_normal(normal: Vec3) -> u16 {
@@ -365,10 +385,11 @@ pub fn encode_normal(normal: Vec3) -> u16 {
     };
     let major = n[axis];
     let face = axis as u32 * 2 + u32::from(major < 0.0);
+    let edges = normal_cell_edges();
     let cell = |v: f64| {
-        let g = unwarp(v / major.abs());
-        (((g + 1.0) * 0.5 * f64::from(NORMAL_GRID)).floor() as i64)
-            .clamp(0, i64::from(NORMAL_GRID) - 1) as u32
+        let u = v / major.abs();
+        // Interior edges at or below u: the cell index, 0..=51.
+        (edges[1..NORMAL_GRID as usize].partition_point(|&e| e <= u)) as u32
     };
     let iu = cell(n[(axis + 1) % 3]);
     let iv = cell(n[(axis + 2) % 3]);
@@ -387,7 +408,14 @@ pub fn decode_normal(code: u16) -> Vec3 {
 
 /// Half-angles (radians) of the four cone codes.
 pub fn cone_half_angle(code: u8) -> f64 {
-    CONE_SINES[usize::from(code & 3)].asin()
+    // asin of CONE_SINES, spelled out so hot loops need no libm call.
+    const HALF_ANGLES: [f64; 4] = [
+        0.062_540_761_796_491_39,
+        0.252_680_255_142_078_65,
+        0.597_406_416_645_350_2,
+        std::f64::consts::FRAC_PI_2,
+    ];
+    HALF_ANGLES[usize::from(code & 3)]
 }
 
 /// The smallest cone code whose half-angle covers `half_angle` radians;
@@ -445,6 +473,42 @@ mod tests {
         }
         let mean = total / f64::from(n);
         assert!(mean > 0.005 && mean < 0.015, "mean normal error {mean} rad");
+    }
+
+    #[test]
+    fn max_normal_error_holds_at_cell_corners() {
+        // The worst case of a cell is at a corner: sweep every face's grid
+        // edges and a little inside them.
+        let edges = normal_cell_edges();
+        let mut worst = 0.0f64;
+        for face in 0..6usize {
+            let (axis, sign) = (face / 2, if face % 2 == 0 { 1.0 } else { -1.0 });
+            for &u in edges.iter() {
+                for &v in edges.iter() {
+                    for (du, dv) in [(1e-9, 1e-9), (-1e-9, -1e-9), (1e-9, -1e-9), (-1e-9, 1e-9)] {
+                        let mut p = [0.0f64; 3];
+                        p[axis] = sign;
+                        p[(axis + 1) % 3] = (u + du).clamp(-1.0, 1.0);
+                        p[(axis + 2) % 3] = (v + dv).clamp(-1.0, 1.0);
+                        let n = DVec3::from(p).normalize().as_vec3();
+                        worst =
+                            worst.max(f64::from(n.angle_between(decode_normal(encode_normal(n)))));
+                    }
+                }
+            }
+        }
+        assert!(worst <= MAX_NORMAL_ERROR, "worst normal error {worst}");
+        assert!(
+            worst > MAX_NORMAL_ERROR * 0.8,
+            "bound {MAX_NORMAL_ERROR} is loose: worst {worst}"
+        );
+    }
+
+    #[test]
+    fn cone_angles_are_the_asin_of_their_sines() {
+        for (code, sine) in CONE_SINES.iter().enumerate() {
+            assert!((cone_half_angle(code as u8) - sine.asin()).abs() < 1e-15);
+        }
     }
 
     #[test]
@@ -522,7 +586,8 @@ mod tests {
             let v = Vec3::new(x, y, z);
             prop_assume!(v.length() > 1e-3);
             let v = v.normalize();
-            prop_assert!(v.angle_between(decode_normal(encode_normal(v))) < 0.03);
+            let error = f64::from(v.angle_between(decode_normal(encode_normal(v))));
+            prop_assert!(error <= MAX_NORMAL_ERROR, "{error}");
         }
     }
 }

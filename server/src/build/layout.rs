@@ -11,6 +11,7 @@ use farfield_protocol::file::{AttributeFlags, FileHeader, HierarchyKind, PageEnt
 use farfield_protocol::page::{PAGE_CHECKSUM_BYTES, PAGE_HEADER_BYTES, PageHeader, encode_page};
 use farfield_protocol::sphere_codec::{self, ChildCount, NodeLayout, NodeRecord};
 use glam::{DVec3, Vec3};
+use rayon::prelude::*;
 
 use super::leaves::{cone_from_u8, unpack_normal};
 use super::tree::{NodeRef, Tree};
@@ -62,43 +63,66 @@ pub fn lay_out(mut tree: Tree, input: LayoutInput) -> PagedFile {
     // Breadth-first index of the next child to be placed.
     let mut next_child = 1u64;
     let mut leaf_sources = Vec::new();
-    let mut note_leaf = |node: NodeRef, index: u64, tree: &Tree| {
-        if let (true, Ok(l)) = (input.record_leaf_sources, node.get()) {
-            leaf_sources.push((tree.leaves[l].source, index));
-        }
-    };
     // The root forms its own group, quantized against the header sphere.
     let root = tree.root;
-    let root_record = record_for(&mut tree, root, root_center, root_radius, input.layout);
+    let (root_record, root_update) = quantize(&tree, root, root_center, root_radius, input.layout);
+    apply(&mut tree, root_update);
     pages.start_group(depth);
-    pages.push(root_record.0.pack(input.layout), next_child);
-    next_child += root_record.0.children.get() as u64;
+    pages.push(root_record.pack(input.layout), next_child);
+    next_child += root_record.children.get() as u64;
     nodes += 1;
-    leaves += u64::from(root_record.0.children == ChildCount::LEAF);
-    note_leaf(root, 0, &tree);
+    if let Ok(l) = root.get() {
+        leaves += 1;
+        if input.record_leaf_sources {
+            leaf_sources.push((tree.leaves[l].source, 0));
+        }
+    }
     pages.end_group();
     while !level.is_empty() {
         pages.end_level();
         depth += 1;
         next.clear();
-        for &parent in &level {
-            let Err(p) = parent.get() else { continue };
-            let node = tree.interior[p];
-            pages.start_group(depth);
-            for &child in &node.children[..usize::from(node.child_count)] {
-                let (record, is_interior) =
-                    record_for(&mut tree, child, node.center, node.radius, input.layout);
-                pages.push(record.pack(input.layout), next_child);
-                next_child += record.children.get() as u64;
-                if is_interior {
-                    next.push(child);
-                } else {
-                    note_leaf(child, nodes, &tree);
-                    leaves += 1;
+        let parents: Vec<usize> = level.iter().filter_map(|r| r.get().err()).collect();
+        for chunk in parents.chunks(LAYOUT_CHUNK) {
+            // Quantize this chunk's sibling groups on all threads (each reads
+            // only its parent's already-quantized sphere), then place them in
+            // order and record the children's quantized spheres.
+            let groups: Vec<[(NodeRecord, NodeRef, Update); 4]> = chunk
+                .par_iter()
+                .map(|&p| {
+                    let node = &tree.interior[p];
+                    let mut group = [(NodeRecord::EMPTY, NodeRef::leaf(0), None); 4];
+                    for (slot, &child) in group
+                        .iter_mut()
+                        .zip(&node.children[..usize::from(node.child_count)])
+                    {
+                        let (record, update) =
+                            quantize(&tree, child, node.center, node.radius, input.layout);
+                        *slot = (record, child, update);
+                    }
+                    group
+                })
+                .collect();
+            for (&p, group) in chunk.iter().zip(&groups) {
+                pages.start_group(depth);
+                for &(record, child, update) in &group[..usize::from(tree.interior[p].child_count)]
+                {
+                    pages.push(record.pack(input.layout), next_child);
+                    next_child += record.children.get() as u64;
+                    apply(&mut tree, update);
+                    match child.get() {
+                        Err(_) => next.push(child),
+                        Ok(l) => {
+                            leaves += 1;
+                            if input.record_leaf_sources {
+                                leaf_sources.push((tree.leaves[l].source, nodes));
+                            }
+                        }
+                    }
+                    nodes += 1;
                 }
-                nodes += 1;
+                pages.end_group();
             }
-            pages.end_group();
         }
         std::mem::swap(&mut level, &mut next);
     }
@@ -138,16 +162,30 @@ pub fn lay_out(mut tree: Tree, input: LayoutInput) -> PagedFile {
     }
 }
 
-/// Quantizes one node against its parent's quantized sphere. An interior
-/// node's sphere is replaced by its quantized value for its children's sake.
-/// Returns the record and whether the node is interior.
-fn record_for(
-    tree: &mut Tree,
+/// Parents quantized per parallel batch: enough work to share between
+/// threads, little enough memory to hold the batch's records.
+const LAYOUT_CHUNK: usize = 1 << 14;
+
+/// An interior node's quantized sphere, to replace its true one.
+type Update = Option<(usize, DVec3, f64)>;
+
+fn apply(tree: &mut Tree, update: Update) {
+    if let Some((i, center, radius)) = update {
+        tree.interior[i].center = center;
+        tree.interior[i].radius = radius;
+    }
+}
+
+/// Quantizes one node against its parent's quantized sphere. For an
+/// interior node also returns its quantized sphere, which replaces the true
+/// one once the level is placed: only its children still need it.
+fn quantize(
+    tree: &Tree,
     node: NodeRef,
     parent_center: DVec3,
     parent_radius: f64,
     layout: NodeLayout,
-) -> (NodeRecord, bool) {
+) -> (NodeRecord, Update) {
     let (center, radius, normal, cone, color, children) = match node.get() {
         Ok(l) => {
             let leaf = tree.leaves[l];
@@ -181,11 +219,10 @@ fn record_for(
         radius
     };
     let sphere = sphere_codec::encode_sphere(parent_center, parent_radius, center, stored_radius);
-    if let Err(i) = node.get() {
+    let update = node.get().err().map(|i| {
         let (qc, qr) = sphere_codec::decode_sphere(parent_center, parent_radius, sphere);
-        tree.interior[i].center = qc;
-        tree.interior[i].radius = qr;
-    }
+        (i, qc, qr)
+    });
     let (normal_code, cone_code) = if layout.normals {
         encode_orientation(normal, cone)
     } else {
@@ -202,7 +239,7 @@ fn record_for(
             0
         },
     };
-    (record, children > 0)
+    (record, update)
 }
 
 /// How much larger than its true sphere an interior node is stored.
@@ -220,12 +257,14 @@ fn record_for(
 /// quantizer pays this cost in another way the paper does not detail.)
 pub const INTERIOR_SLACK: f64 = 0.15;
 
-/// Normal and cone codes; the cone is widened by the normal's own
+/// Normal and cone codes; the cone is widened by the largest normal
 /// quantization error so culling by the stored values stays conservative.
 fn encode_orientation(normal: Vec3, cone: f64) -> (u16, u8) {
     let code = sphere_codec::encode_normal(normal);
-    let error = f64::from(sphere_codec::decode_normal(code).angle_between(normal));
-    (code, sphere_codec::encode_cone(cone + error + 1e-6))
+    (
+        code,
+        sphere_codec::encode_cone(cone + sphere_codec::MAX_NORMAL_ERROR),
+    )
 }
 
 /// Accumulates records into pages of at most `page_bytes`, never splitting a

@@ -16,6 +16,7 @@
 //! [`knn`]: super::knn
 
 use glam::{DAffine3, DVec3, Vec3};
+use rayon::prelude::*;
 
 use crate::scene::{Geometry, Primitives, Rgb8, Scene};
 
@@ -77,22 +78,34 @@ pub fn make_leaves(scene: Scene, has_color: bool) -> (Vec<Leaf>, LeafStats) {
             leaves.extend_from_slice(&local);
             continue;
         }
-        for world_from_local in transforms {
-            let linear = world_from_local.matrix3;
-            let scale = max_stretch(world_from_local);
-            let normal_matrix = linear.inverse().transpose();
-            leaves.extend(local.iter().map(|leaf| {
-                let n = normal_matrix * unpack_normal(leaf.normal).as_dvec3();
-                Leaf {
-                    position: world_from_local.transform_point3(leaf.position),
-                    radius: (f64::from(leaf.radius) * scale) as f32,
-                    normal: pack_normal(n.as_vec3()),
-                    ..*leaf
-                }
-            }));
-        }
+        // Instances are independent: place them on all threads, each into
+        // its own slice of the output (no intermediate copies).
+        let Some(&filler) = local.first() else {
+            continue;
+        };
+        let start = leaves.len();
+        leaves.resize(start + local.len() * transforms.len(), filler);
+        leaves[start..]
+            .par_chunks_mut(local.len())
+            .zip(transforms.par_iter())
+            .for_each(|(out, &world_from_local)| place(&local, world_from_local, out));
     }
     (leaves, stats)
+}
+
+/// A geometry's local leaves placed by one instance, written to `out`.
+fn place(local: &[Leaf], world_from_local: DAffine3, out: &mut [Leaf]) {
+    let scale = max_stretch(world_from_local);
+    let normal_matrix = world_from_local.matrix3.inverse().transpose();
+    for (leaf, slot) in local.iter().zip(out) {
+        let n = normal_matrix * unpack_normal(leaf.normal).as_dvec3();
+        *slot = Leaf {
+            position: world_from_local.transform_point3(leaf.position),
+            radius: round_up_f32(f64::from(leaf.radius) * scale),
+            normal: pack_normal(n.as_vec3()),
+            ..*leaf
+        };
+    }
 }
 
 /// The largest factor by which a transform can lengthen a vector: the
@@ -205,8 +218,9 @@ fn size_from_triangles(
     };
     let final_normals: Vec<Option<DVec3>> = (0..n).map(vertex_normal).collect();
     drop(normal_sum);
-    // Cone: the widest angle between a vertex normal and its faces' normals.
-    let mut cone = vec![0.0f64; n];
+    // Cone: the widest angle between a vertex normal and its faces' normals,
+    // tracked as the smallest cosine (one acos per vertex, not per corner).
+    let mut min_cos = vec![1.0f64; n];
     for tri in triangles {
         let [a, b, c] = tri.map(|i| i as usize);
         let face = (leaves[b].position - leaves[a].position)
@@ -216,7 +230,7 @@ fn size_from_triangles(
         };
         for v in [a, b, c] {
             if let Some(nv) = final_normals[v] {
-                cone[v] = cone[v].max(nv.dot(face).clamp(-1.0, 1.0).acos());
+                min_cos[v] = min_cos[v].min(nv.dot(face));
             }
         }
     }
@@ -232,7 +246,7 @@ fn size_from_triangles(
         match final_normals[v] {
             Some(nv) => {
                 leaf.normal = pack_normal(nv.as_vec3());
-                leaf.cone = cone_to_u8(cone[v]);
+                leaf.cone = cone_to_u8(min_cos[v].clamp(-1.0, 1.0).acos());
             }
             None => leaf.cone = 255,
         }

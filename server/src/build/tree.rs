@@ -88,7 +88,8 @@ pub fn build_tree(mut leaves: Vec<Leaf>) -> Tree {
         "too many leaves for 31-bit references"
     );
     let mut interior = Vec::with_capacity(leaves.len() / 2);
-    let (root, _, collapsed) = build_range(&mut leaves, 0, 0, &mut interior);
+    let all = bounds(&leaves);
+    let (root, _, collapsed) = build_range(&mut leaves, all, 0, 0, &mut interior);
     Tree {
         leaves,
         interior,
@@ -102,6 +103,7 @@ pub fn build_tree(mut leaves: Vec<Leaf>) -> Tree {
 /// summary, and how many leaves were collapsed as duplicates.
 fn build_range(
     leaves: &mut [Leaf],
+    (lo, hi): Bounds,
     base: usize,
     depth: u32,
     out: &mut Vec<Interior>,
@@ -109,7 +111,6 @@ fn build_range(
     if leaves.len() == 1 {
         return (NodeRef::leaf(base), leaf_summary(&leaves[0]), 0);
     }
-    let (lo, hi) = bounds(leaves);
     if lo == hi {
         let collapsed = leaves.len() as u64 - 1;
         collapse(leaves);
@@ -117,17 +118,18 @@ fn build_range(
     }
     // Split into two halves, then each half with more than one distinct
     // position into two again: 2 to 4 child ranges.
-    let mid = split(leaves, lo, hi, depth);
-    let mut ranges: Vec<(usize, usize)> = Vec::with_capacity(4);
-    for (start, end) in [(0, mid), (mid, leaves.len())] {
+    // Each split also measures the bounds of its two sides, so no range's
+    // bounds are computed twice.
+    let (mid, left, right) = split(leaves, lo, hi, depth);
+    let mut ranges: Vec<(usize, usize, Bounds)> = Vec::with_capacity(4);
+    for (start, end, (plo, phi)) in [(0, mid, left), (mid, leaves.len(), right)] {
         let part = &mut leaves[start..end];
-        let (plo, phi) = bounds(part);
         if part.len() > 1 && plo != phi {
-            let m = split(part, plo, phi, depth + 1);
-            ranges.push((start, start + m));
-            ranges.push((start + m, end));
+            let (m, a, b) = split(part, plo, phi, depth + 1);
+            ranges.push((start, start + m, a));
+            ranges.push((start + m, end, b));
         } else {
-            ranges.push((start, end));
+            ranges.push((start, end, (plo, phi)));
         }
     }
     let mut children = [NodeRef::leaf(0); 4];
@@ -155,9 +157,9 @@ fn build_range(
             collapsed += dup;
         }
     } else {
-        for (i, &(start, end)) in ranges.iter().enumerate() {
+        for (i, &(start, end, b)) in ranges.iter().enumerate() {
             let (child, summary, dup) =
-                build_range(&mut leaves[start..end], base + start, depth + 2, out);
+                build_range(&mut leaves[start..end], b, base + start, depth + 2, out);
             children[i] = child;
             summaries.push(summary);
             collapsed += dup;
@@ -175,23 +177,23 @@ fn build_parallel(
     leaves: &mut [Leaf],
     base: usize,
     depth: u32,
-    ranges: &[(usize, usize)],
+    ranges: &[(usize, usize, Bounds)],
 ) -> Vec<Built> {
-    fn one(leaves: &mut [Leaf], base: usize, depth: u32) -> Built {
-        let mut nodes = Vec::new();
-        let (r, s, d) = build_range(leaves, base, depth, &mut nodes);
-        (r, s, d, nodes)
-    }
     fn many(
         leaves: &mut [Leaf],
         base: usize,
         depth: u32,
-        ranges: &[(usize, usize)],
+        ranges: &[(usize, usize, Bounds)],
         offset: usize,
     ) -> Vec<Built> {
         match ranges {
             [] => Vec::new(),
-            [(s, e)] => vec![one(&mut leaves[s - offset..e - offset], base + s, depth)],
+            [(s, e, b)] => {
+                let mut nodes = Vec::new();
+                let part = &mut leaves[s - offset..e - offset];
+                let (r, summary, d) = build_range(part, *b, base + s, depth, &mut nodes);
+                vec![(r, summary, d, nodes)]
+            }
             _ => {
                 let half = ranges.len() / 2;
                 let cut = ranges[half].0 - offset;
@@ -208,49 +210,63 @@ fn build_parallel(
     many(leaves, base, depth, ranges, 0)
 }
 
-fn bounds(leaves: &[Leaf]) -> (DVec3, DVec3) {
-    let mut lo = DVec3::INFINITY;
-    let mut hi = DVec3::NEG_INFINITY;
-    for l in leaves {
-        lo = lo.min(l.position);
-        hi = hi.max(l.position);
-    }
-    (lo, hi)
+/// Axis-aligned bounds of a range's positions: (min, max).
+pub type Bounds = (DVec3, DVec3);
+
+const EMPTY_BOUNDS: Bounds = (DVec3::INFINITY, DVec3::NEG_INFINITY);
+
+fn grow((lo, hi): &mut Bounds, p: DVec3) {
+    *lo = lo.min(p);
+    *hi = hi.max(p);
 }
 
-/// Partitions `leaves` (not all at one position) and returns the split
-/// index, strictly inside the range.
-fn split(leaves: &mut [Leaf], lo: DVec3, hi: DVec3, depth: u32) -> usize {
+fn bounds(leaves: &[Leaf]) -> Bounds {
+    let mut b = EMPTY_BOUNDS;
+    for l in leaves {
+        grow(&mut b, l.position);
+    }
+    b
+}
+
+/// Partitions `leaves` (not all at one position); returns the split index,
+/// strictly inside the range, and the bounds of the two sides.
+fn split(leaves: &mut [Leaf], lo: DVec3, hi: DVec3, depth: u32) -> (usize, Bounds, Bounds) {
     let axis = (hi - lo).max_position();
     if depth < BISECT_DEPTH {
         let plane = lo[axis] + (hi[axis] - lo[axis]) * 0.5;
-        let mid = partition(leaves, |l| l.position[axis] < plane);
+        let (mid, left, right) = partition(leaves, |l| l.position[axis] < plane);
         if mid > 0 && mid < leaves.len() {
-            return mid;
+            return (mid, left, right);
         }
     }
     // Median split: balanced whatever the spacing. Equal coordinates may
     // straddle the median, which is fine: both sides are non-empty.
     let mid = leaves.len() / 2;
     leaves.select_nth_unstable_by(mid, |a, b| a.position[axis].total_cmp(&b.position[axis]));
-    mid
+    (mid, bounds(&leaves[..mid]), bounds(&leaves[mid..]))
 }
 
-/// In-place partition: elements satisfying `pred` first; returns their count.
-fn partition(leaves: &mut [Leaf], pred: impl Fn(&Leaf) -> bool) -> usize {
+/// In-place partition: elements satisfying `pred` first. Returns their
+/// count and the bounds of both sides, gathered in the same pass.
+fn partition(leaves: &mut [Leaf], pred: impl Fn(&Leaf) -> bool) -> (usize, Bounds, Bounds) {
+    let (mut left, mut right) = (EMPTY_BOUNDS, EMPTY_BOUNDS);
     let mut first = 0;
     let mut last = leaves.len();
     loop {
         while first < last && pred(&leaves[first]) {
+            grow(&mut left, leaves[first].position);
             first += 1;
         }
         while first < last && !pred(&leaves[last - 1]) {
+            grow(&mut right, leaves[last - 1].position);
             last -= 1;
         }
         if first + 1 >= last {
-            return first;
+            return (first, left, right);
         }
         leaves.swap(first, last - 1);
+        grow(&mut left, leaves[first].position);
+        grow(&mut right, leaves[last - 1].position);
         first += 1;
         last -= 1;
     }
