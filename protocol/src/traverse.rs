@@ -203,22 +203,33 @@ enum Facing {
 /// Normal-cone test: the directions from the sphere to the eye spread by
 /// asin(r / d); the cone's normals spread by its half-angle. Away when every
 /// such pair is more than 90 degrees apart, toward when every pair is less.
+/// With `slack` = cone + asin(r/d), away means cos(angle) < -sin(slack) and
+/// toward means cos(angle) > sin(slack); sin(slack) comes from the sum
+/// formula, so the test needs one square root and no trigonometry.
 fn facing(view: &View, center: DVec3, radius: f64, rec: &NodeRecord) -> Facing {
     if rec.cone == 3 {
         return Facing::Either;
     }
     let to_eye = view.eye - center;
-    let d = to_eye.length();
-    if d <= radius {
+    let d2 = to_eye.length_squared();
+    if d2 <= radius * radius {
         return Facing::Either;
     }
-    let n = sphere_codec::decode_normal(rec.normal).as_dvec3();
-    let angle = n.dot(to_eye / d).clamp(-1.0, 1.0).acos();
-    let slack = sphere_codec::cone_half_angle(rec.cone) + (radius / d).asin();
-    let right = std::f64::consts::FRAC_PI_2;
-    if angle > right + slack {
+    let d = d2.sqrt();
+    let q = radius / d;
+    let cos_q = (1.0 - q * q).sqrt();
+    let sin_cone = sphere_codec::CONE_SINES[usize::from(rec.cone)];
+    let cos_cone = (1.0 - sin_cone * sin_cone).sqrt();
+    // slack >= 90 degrees: nothing can be concluded.
+    if cos_cone * cos_q - sin_cone * q <= 0.0 {
+        return Facing::Either;
+    }
+    let sin_slack = sin_cone * cos_q + cos_cone * q;
+    let cos_angle = f64::from(sphere_codec::decode_normal(rec.normal).dot((to_eye / d).as_vec3()));
+    // A hair of margin for the f32 normal: culling must never drop a visible node.
+    if cos_angle < -sin_slack - 1e-6 {
         Facing::Away
-    } else if angle + slack < right {
+    } else if cos_angle > sin_slack {
         Facing::Toward
     } else {
         Facing::Either

@@ -9,6 +9,7 @@
 //!
 //! Importers produce scenes, never files: they know nothing of hierarchies.
 
+mod common;
 pub mod generate;
 mod las;
 mod obj;

@@ -22,7 +22,7 @@ use std::path::Path;
 use glam::{DVec3, Vec3};
 
 use super::ImportError;
-use super::ply::{fan, unit_color, unit_normals};
+use super::common::{fan, unit_color, unit_normals};
 use crate::scene::{Geometry, Primitives, Scene};
 
 /// Loads an OBJ file as one geometry: triangles, or points when it has no

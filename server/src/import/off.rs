@@ -18,7 +18,7 @@ use std::path::Path;
 use glam::{DVec3, Vec3};
 
 use super::ImportError;
-use super::ply::{fan, unit_color, unit_normals};
+use super::common::{fan, unit_color, unit_normals};
 use crate::scene::{Geometry, Primitives, Scene};
 
 /// Loads an OFF file as one triangle mesh (a point cloud if it has no faces).

@@ -1,0 +1,59 @@
+//! Small pieces several importers share: polygon fans, unit colors and
+//! the repair of unusable input normals.
+
+use glam::{DVec3, Vec3};
+
+/// Fan-triangulates a convex polygon: `(p0, p[i], p[i+1])`.
+pub(crate) fn fan(polygon: &[u32], out: &mut Vec<[u32; 3]>) {
+    if let Some((&first, rest)) = polygon.split_first() {
+        out.extend(rest.windows(2).map(|w| [first, w[0], w[1]]));
+    }
+}
+
+/// A 0..1 color value as 8 bits (clamped; NaN becomes 0).
+pub(crate) fn unit_color(v: f64) -> u8 {
+    (v.clamp(0.0, 1.0) * 255.0).round() as u8
+}
+
+/// Normalizes input normals. A zero or non-finite normal is replaced by the
+/// area-weighted normal of the triangles around its vertex (or +Z where
+/// those are degenerate too); without triangles such a normal drops all
+/// normals, and the builder estimates them from neighbours instead.
+pub(crate) fn unit_normals(
+    mut normals: Vec<Vec3>,
+    positions: &[DVec3],
+    triangles: Option<&[[u32; 3]]>,
+) -> Option<Vec<Vec3>> {
+    let mut bad = Vec::new();
+    for (i, n) in normals.iter_mut().enumerate() {
+        let d = n.as_dvec3();
+        let len = d.length();
+        if len > 0.0 && len.is_finite() {
+            *n = (d / len).as_vec3();
+        } else {
+            bad.push(i);
+        }
+    }
+    if bad.is_empty() {
+        return Some(normals);
+    }
+    let triangles = triangles.filter(|t| !t.is_empty())?;
+    let mut sums = vec![DVec3::ZERO; positions.len()];
+    for t in triangles {
+        let p = t.map(|i| positions.get(i as usize).copied().unwrap_or_default());
+        let n = (p[1] - p[0]).cross(p[2] - p[0]);
+        for &i in t {
+            if let Some(s) = sums.get_mut(i as usize) {
+                *s += n;
+            }
+        }
+    }
+    for i in bad {
+        let s = sums.get(i).copied().unwrap_or_default();
+        let n = s.try_normalize().map_or(Vec3::Z, |s| s.as_vec3());
+        if let Some(slot) = normals.get_mut(i) {
+            *slot = n;
+        }
+    }
+    Some(normals)
+}
