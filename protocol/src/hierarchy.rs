@@ -18,6 +18,8 @@ use crate::sphere_codec::{self, NodeLayout, NodeRecord};
 #[derive(Debug, Clone)]
 pub struct ResidentPage {
     pub header: PageHeader,
+    /// The records as stored, followed by 8 zero bytes so any record can be
+    /// read as one unaligned little-endian u64 without a bounds-sized copy.
     records: Vec<u8>,
     /// For node i of the page: its first child's index minus
     /// `header.first_child`.
@@ -136,7 +138,12 @@ impl Hierarchy {
         self.resident_bytes += bytes.len();
         self.pages[index as usize] = Some(ResidentPage {
             header: h,
-            records: page.records.to_vec(),
+            records: {
+                let mut r = Vec::with_capacity(page.records.len() + 8);
+                r.extend_from_slice(page.records);
+                r.extend_from_slice(&[0; 8]);
+                r
+            },
             child_offset,
             byte_len: bytes.len(),
         });
@@ -172,8 +179,13 @@ impl Hierarchy {
     pub(crate) fn record(&self, page: &ResidentPage, local: usize) -> NodeRecord {
         let nb = self.header.node_bytes as usize;
         let mut word = [0u8; 8];
-        word[..nb].copy_from_slice(&page.records[local * nb..local * nb + nb]);
-        NodeRecord::unpack(u64::from_le_bytes(word), self.layout)
+        word.copy_from_slice(&page.records[local * nb..local * nb + 8]);
+        let mask = if nb >= 8 {
+            u64::MAX
+        } else {
+            (1u64 << (8 * nb)) - 1
+        };
+        NodeRecord::unpack(u64::from_le_bytes(word) & mask, self.layout)
     }
 
     /// Breadth-first index of the first child of node `local` of `page`.

@@ -78,14 +78,33 @@ struct Item {
 
 /// Walks the resident part of `h` for one camera.
 pub fn traverse(h: &Hierarchy, camera: &Camera, options: &TraverseOptions) -> Cut {
-    let view = camera.view(h.header.root_radius * options.near_fraction);
     let mut cut = Cut::default();
+    traverse_into(h, camera, options, &mut cut);
+    cut
+}
+
+/// [`traverse`] into a caller's [`Cut`], reusing its buffers: a renderer
+/// traversing every frame then allocates nothing once warmed up.
+pub fn traverse_into(h: &Hierarchy, camera: &Camera, options: &TraverseOptions, cut: &mut Cut) {
+    let view = camera.view(h.header.root_radius * options.near_fraction);
+    cut.splats.clear();
+    cut.wanted.clear();
+    cut.visited = 0;
+    cut.frustum_culled = 0;
+    cut.backface_culled = 0;
+    // Table lookups hoisted out of the loop (each accessor checks a OnceLock).
+    let spheres = sphere_codec::sphere_table();
+    let normals = sphere_codec::normal_table();
+    let decode = |c: DVec3, r: f64, code: u16| {
+        let step = &spheres[usize::from(code)];
+        (c + step.offset * r, step.radius * r)
+    };
     if h.page(0).is_none() {
         cut.wanted.push(WantedPage {
             page: 0,
             priority: f64::INFINITY,
         });
-        return cut;
+        return;
     }
     let threshold = options.threshold_px.max(0.0);
     let cull_backfaces = options.backface_culling && h.layout.normals;
@@ -101,8 +120,7 @@ pub fn traverse(h: &Hierarchy, camera: &Camera, options: &TraverseOptions) -> Cu
     // The root's own record may shrink it; decode it like any other node.
     if let Some(p) = h.page(0) {
         let rec = h.record(p, 0);
-        let (c, r) =
-            sphere_codec::decode_sphere(h.header.root_center, h.header.root_radius, rec.sphere);
+        let (c, r) = decode(h.header.root_center, h.header.root_radius, rec.sphere);
         stack[0].center = c;
         stack[0].radius = r;
     }
@@ -124,7 +142,7 @@ pub fn traverse(h: &Hierarchy, camera: &Camera, options: &TraverseOptions) -> Cu
         }
         let rec = h.record(page, item.local as usize);
         if !item.facing {
-            match facing(&view, item.center, item.radius, &rec) {
+            match facing(&view, item.center, item.radius, &rec, normals) {
                 Facing::Away => {
                     cut.backface_culled += 1;
                     continue;
@@ -145,8 +163,7 @@ pub fn traverse(h: &Hierarchy, camera: &Camera, options: &TraverseOptions) -> Cu
                             let index = first + c;
                             let local = (index - child_page.header.first_node) as usize;
                             let child = h.record(child_page, local);
-                            let (center, radius) =
-                                sphere_codec::decode_sphere(item.center, item.radius, child.sphere);
+                            let (center, radius) = decode(item.center, item.radius, child.sphere);
                             stack.push(Item {
                                 page: child_page_index as u32,
                                 local: local as u32,
@@ -173,10 +190,7 @@ pub fn traverse(h: &Hierarchy, camera: &Camera, options: &TraverseOptions) -> Cu
             cut.splats.push(Splat {
                 center: item.center,
                 radius: item.radius,
-                normal: h
-                    .layout
-                    .normals
-                    .then(|| sphere_codec::decode_normal(rec.normal)),
+                normal: h.layout.normals.then(|| normals[usize::from(rec.normal)]),
                 color: h
                     .layout
                     .color
@@ -185,13 +199,13 @@ pub fn traverse(h: &Hierarchy, camera: &Camera, options: &TraverseOptions) -> Cu
             });
         }
     }
-    cut.wanted = wanted
-        .into_iter()
-        .map(|(page, priority)| WantedPage { page, priority })
-        .collect();
+    cut.wanted.extend(
+        wanted
+            .into_iter()
+            .map(|(page, priority)| WantedPage { page, priority }),
+    );
     cut.wanted
         .sort_by(|a, b| b.priority.total_cmp(&a.priority).then(a.page.cmp(&b.page)));
-    cut
 }
 
 enum Facing {
@@ -206,7 +220,7 @@ enum Facing {
 /// With `slack` = cone + asin(r/d), away means cos(angle) < -sin(slack) and
 /// toward means cos(angle) > sin(slack); sin(slack) comes from the sum
 /// formula, so the test needs one square root and no trigonometry.
-fn facing(view: &View, center: DVec3, radius: f64, rec: &NodeRecord) -> Facing {
+fn facing(view: &View, center: DVec3, radius: f64, rec: &NodeRecord, normals: &[Vec3]) -> Facing {
     if rec.cone == 3 {
         return Facing::Either;
     }
@@ -225,7 +239,7 @@ fn facing(view: &View, center: DVec3, radius: f64, rec: &NodeRecord) -> Facing {
         return Facing::Either;
     }
     let sin_slack = sin_cone * cos_q + cos_cone * q;
-    let cos_angle = f64::from(sphere_codec::decode_normal(rec.normal).dot((to_eye / d).as_vec3()));
+    let cos_angle = f64::from(normals[usize::from(rec.normal)].dot((to_eye / d).as_vec3()));
     // A hair of margin for the f32 normal: culling must never drop a visible node.
     if cos_angle < -sin_slack - 1e-6 {
         Facing::Away

@@ -6,7 +6,7 @@ use std::path::Path;
 use std::time::Instant;
 
 use farfield_protocol::camera::Camera;
-use farfield_protocol::traverse::{TraverseOptions, traverse};
+use farfield_protocol::traverse::{Cut, TraverseOptions, traverse_into};
 use serde_json::json;
 
 use super::build::load_inputs;
@@ -96,9 +96,11 @@ pub fn traverse_file(file: &Path, repeats: usize, as_json: bool) -> anyhow::Resu
         4096,
         4096,
     );
+    // One cut reused across repeats, as a renderer would from frame to frame.
+    let mut cut = Cut::default();
     for _ in 0..repeats.max(1) {
         let started = Instant::now();
-        let cut = traverse(&h, &camera, &options);
+        traverse_into(&h, &camera, &options, &mut cut);
         let seconds = started.elapsed().as_secs_f64();
         visited = cut.visited;
         splats = cut.splats.len();
