@@ -157,7 +157,7 @@ fn local_leaves(geometry: Geometry, has_color: bool) -> (Vec<Leaf>, u64) {
     drop(colors);
     match primitives {
         Primitives::Triangles(triangles) => {
-            let unreferenced = size_from_triangles(&mut leaves, &triangles, normals.as_deref());
+            let unreferenced = size_from_triangles(&mut leaves, &triangles, normals);
             drop(triangles);
             if unreferenced > 0 {
                 leaves.retain(|l| !is_unreferenced(l));
@@ -187,40 +187,35 @@ fn is_unreferenced(leaf: &Leaf) -> bool {
 fn size_from_triangles(
     leaves: &mut [Leaf],
     triangles: &[[u32; 3]],
-    normals: Option<&[Vec3]>,
+    normals: Option<Vec<Vec3>>,
 ) -> u64 {
+    // Working memory is one f32 normal and one f32 cosine per vertex: the
+    // radius accumulates in the leaf itself, -1 meaning "no triangle yet".
     let n = leaves.len();
-    let mut used = vec![false; n];
-    let mut radius = vec![0.0f64; n];
-    let mut normal_sum = if normals.is_none() {
-        vec![DVec3::ZERO; n]
-    } else {
-        Vec::new()
-    };
+    for leaf in leaves.iter_mut() {
+        leaf.radius = -1.0;
+    }
+    let have_normals = normals.is_some();
+    let mut normal = normals.unwrap_or_else(|| vec![Vec3::ZERO; n]);
     for tri in triangles {
         let [a, b, c] = tri.map(|i| i as usize);
         let (pa, pb, pc) = (leaves[a].position, leaves[b].position, leaves[c].position);
-        let r = triangle_bounding_radius(pa, pb, pc);
-        let face = (pb - pa).cross(pc - pa); // length = 2 * area
+        // Rounded up to f32 per triangle: the max of round-ups never shrinks.
+        let r = round_up_f32(triangle_bounding_radius(pa, pb, pc));
+        let face = (pb - pa).cross(pc - pa).as_vec3(); // length = 2 * area
         for v in [a, b, c] {
-            used[v] = true;
-            radius[v] = radius[v].max(r);
-            if let Some(sum) = normal_sum.get_mut(v) {
-                *sum += face;
+            leaves[v].radius = leaves[v].radius.max(r);
+            if !have_normals {
+                normal[v] += face;
             }
         }
     }
-    let vertex_normal = |v: usize| -> Option<DVec3> {
-        match normals {
-            Some(ns) => ns[v].as_dvec3().try_normalize(),
-            None => normal_sum[v].try_normalize(),
-        }
-    };
-    let final_normals: Vec<Option<DVec3>> = (0..n).map(vertex_normal).collect();
-    drop(normal_sum);
+    for nv in &mut normal {
+        *nv = nv.try_normalize().unwrap_or(Vec3::ZERO);
+    }
     // Cone: the widest angle between a vertex normal and its faces' normals,
     // tracked as the smallest cosine (one acos per vertex, not per corner).
-    let mut min_cos = vec![1.0f64; n];
+    let mut min_cos = vec![1.0f32; n];
     for tri in triangles {
         let [a, b, c] = tri.map(|i| i as usize);
         let face = (leaves[b].position - leaves[a].position)
@@ -228,27 +223,21 @@ fn size_from_triangles(
         let Some(face) = face.try_normalize() else {
             continue;
         };
+        let face = face.as_vec3();
         for v in [a, b, c] {
-            if let Some(nv) = final_normals[v] {
-                min_cos[v] = min_cos[v].min(nv.dot(face));
-            }
+            min_cos[v] = min_cos[v].min(normal[v].dot(face));
         }
     }
     let mut unreferenced = 0;
     for (v, leaf) in leaves.iter_mut().enumerate() {
-        if !used[v] {
-            leaf.radius = -1.0;
+        if leaf.radius < 0.0 {
             unreferenced += 1;
-            continue;
-        }
-        // f32 rounding must not shrink the sphere: round up.
-        leaf.radius = round_up_f32(radius[v]);
-        match final_normals[v] {
-            Some(nv) => {
-                leaf.normal = pack_normal(nv.as_vec3());
-                leaf.cone = cone_to_u8(min_cos[v].clamp(-1.0, 1.0).acos());
-            }
-            None => leaf.cone = 255,
+        } else if normal[v] != Vec3::ZERO {
+            leaf.normal = pack_normal(normal[v]);
+            // A little margin for the f32 arithmetic of the cosines.
+            leaf.cone = cone_to_u8(f64::from(min_cos[v]).clamp(-1.0, 1.0).acos() + 1e-4);
+        } else {
+            leaf.cone = 255;
         }
     }
     unreferenced
