@@ -248,6 +248,20 @@ pub fn encode_sphere(
     let half = STEPS / 2;
     let nearest = |v: f64| ((v * steps * 0.5).round() as i32).clamp(-half, half);
     let (ni, nj, nk) = (nearest(rel.x), nearest(rel.y), nearest(rel.z));
+    // The nearest grid point needs the smallest radius of all points, so if
+    // its sphere is valid and encloses the child, it is the answer.
+    let offset = DVec3::new(f64::from(ni), f64::from(nj), f64::from(nk)) * (2.0 / steps);
+    let l0 = ceil_steps((rel - offset).length() + rel_radius);
+    for l in l0..=(l0 + 1).min(STEPS) {
+        let code = tables.code_of[grid_slot(ni, nj, nk, l)];
+        if code == u16::MAX {
+            break;
+        }
+        let (c, r) = decode_sphere(parent_center, parent_radius, code);
+        if c.distance(child_center) + child_radius <= r {
+            return code;
+        }
+    }
     for reach in [0, 2, STEPS] {
         // (smallest radius step, i, j, k) of each grid point nearby whose
         // sphere at that step would be valid, smallest step first.
@@ -272,10 +286,7 @@ pub fn encode_sphere(
                 for k in range(nk) {
                     let offset =
                         DVec3::new(f64::from(i), f64::from(j), f64::from(k)) * (2.0 / steps);
-                    let need = ((rel - offset).length() + rel_radius) * steps;
-                    // ceil without a libm call (need is small and positive).
-                    let floor = need as i32;
-                    let l0 = (floor + i32::from(f64::from(floor) < need)).max(1);
+                    let l0 = ceil_steps((rel - offset).length() + rel_radius);
                     let slack = STEPS - l0;
                     // Integer validity: a larger step is only less valid.
                     if slack >= 0 && 4 * (i * i + j * j + k * k) <= slack * slack {
@@ -289,7 +300,7 @@ pub fn encode_sphere(
                 }
             }
         }
-        let candidates = if reach <= 2 {
+        let candidates = if reach == 0 {
             &mut small[..count]
         } else {
             &mut large[..]
@@ -322,6 +333,15 @@ pub fn encode_sphere(
         }
     }
     identity_sphere_code()
+}
+
+/// The radius step (1 or more) that covers `need` parent radii: the ceiling
+/// of `need * 13`, without a libm call; above 13 means "does not fit".
+#[inline]
+fn ceil_steps(need: f64) -> i32 {
+    let scaled = (need * f64::from(STEPS)).min(f64::from(STEPS + 1));
+    let floor = scaled as i32;
+    (floor + i32::from(f64::from(floor) < scaled)).max(1)
 }
 
 /// The equal-angle warp of a cube-face coordinate in [-1, 1]: cells of the

@@ -197,22 +197,30 @@ fn size_from_triangles(
     }
     let have_normals = normals.is_some();
     let mut normal = normals.unwrap_or_else(|| vec![Vec3::ZERO; n]);
-    for tri in triangles {
-        let [a, b, c] = tri.map(|i| i as usize);
-        let (pa, pb, pc) = (leaves[a].position, leaves[b].position, leaves[c].position);
-        // Rounded up to f32 per triangle: the max of round-ups never shrinks.
-        let r = round_up_f32(triangle_bounding_radius(pa, pb, pc));
-        let face = (pb - pa).cross(pc - pa).as_vec3(); // length = 2 * area
-        for v in [a, b, c] {
-            leaves[v].radius = leaves[v].radius.max(r);
-            if !have_normals {
-                normal[v] += face;
+    // Per-triangle geometry is computed on all threads a chunk at a time
+    // (bounded memory), then scattered to the vertices in order.
+    let mut faces: Vec<(f32, Vec3)> = Vec::with_capacity(TRIANGLE_CHUNK.min(triangles.len()));
+    for chunk in triangles.chunks(TRIANGLE_CHUNK) {
+        let positions = &*leaves;
+        faces.clear();
+        faces.par_extend(chunk.par_iter().map(|tri| {
+            let [a, b, c] = tri.map(|i| positions[i as usize].position);
+            // Rounded up to f32 per triangle: the max of round-ups never shrinks.
+            let r = round_up_f32(triangle_bounding_radius(a, b, c));
+            (r, (b - a).cross(c - a).as_vec3()) // length = 2 * area
+        }));
+        for (tri, &(r, face)) in chunk.iter().zip(&faces) {
+            for v in tri.map(|i| i as usize) {
+                leaves[v].radius = leaves[v].radius.max(r);
+                if !have_normals {
+                    normal[v] += face;
+                }
             }
         }
     }
-    for nv in &mut normal {
-        *nv = nv.try_normalize().unwrap_or(Vec3::ZERO);
-    }
+    normal
+        .par_iter_mut()
+        .for_each(|nv| *nv = nv.try_normalize().unwrap_or(Vec3::ZERO));
     // Cone: the widest angle between a vertex normal and its faces' normals,
     // tracked as the smallest cosine (one acos per vertex, not per corner).
     let mut min_cos = vec![1.0f32; n];
@@ -242,6 +250,9 @@ fn size_from_triangles(
     }
     unreferenced
 }
+
+/// Triangles whose geometry is computed per parallel batch.
+const TRIANGLE_CHUNK: usize = 1 << 18;
 
 /// Radius of the smallest sphere holding a triangle: half the longest edge
 /// for a right or obtuse triangle, else the circumradius.
