@@ -15,10 +15,15 @@
 //!   camera into a cut (splats to draw) and a list of wanted pages.
 //! - [`hierarchy`]: [`hierarchy::Hierarchy`], a header plus whichever pages are
 //!   resident, the one type traversal walks.
+//! - [`messages`]: the websocket session's [`messages::ClientMessage`] and
+//!   [`messages::ServerMessage`]; [`codec`]: their bytes (bincode 2, in one
+//!   module so it can be swapped).
 
 pub mod camera;
+pub mod codec;
 pub mod file;
 pub mod hierarchy;
+pub mod messages;
 pub mod page;
 pub mod sphere_codec;
 pub mod traverse;
