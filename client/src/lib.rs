@@ -1,11 +1,21 @@
 //! farfield-client: the viewer side.
 //!
-//! Today it holds the file-backed page source and the `farfield traverse`
-//! command, which runs the reference traversal of `farfield-protocol` on a
-//! paged file and reports the cut. The websocket client, resident page
-//! cache and wgpu renderer arrive with the streaming client.
-//!
+//! - [`viewer`]: [`viewer::Viewer`], the resident pages of one scene (from a
+//!   file or a memory server), their LRU, and what was asked for.
+//! - [`net`]: the websocket session with the memory server, reconnecting.
+//! - [`render`]: the wgpu splat renderer (headless).
+//! - [`commands`]: `farfield render`, `traverse`, `demo` and friends.
+//! - [`args`]: camera, orbit and size arguments; [`path`]: camera paths.
+//! - [`image`]: PNG in and out; [`eval`]: image error metrics.
 //! - [`local`]: reads a paged file from disk into a fully resident
 //!   [`farfield_protocol::hierarchy::Hierarchy`] (the `--file` mode).
 
+pub mod args;
+pub mod commands;
+pub mod eval;
+pub mod image;
 pub mod local;
+pub mod net;
+pub mod path;
+pub mod render;
+pub mod viewer;

@@ -1,14 +1,19 @@
-//! `farfield`: the client command line.
+//! `farfield`: the client command line. Parsing and dispatch only; the work
+//! is in `farfield_client::commands`.
 
 use std::path::PathBuf;
 use std::process::ExitCode;
-use std::time::Instant;
+use std::time::{Duration, Instant};
 
-use clap::{Parser, Subcommand};
-use farfield_protocol::camera::Camera;
+use anyhow::Context;
+use clap::{Parser, Subcommand, ValueEnum};
+use farfield_client::args::{CameraSpec, parse_camera, parse_orbit, parse_size};
+use farfield_client::commands::render::{RenderJob, Source, Until};
+use farfield_client::net::SessionOptions;
+use farfield_client::render::{Kernel, Renderer};
 use farfield_protocol::traverse::{TraverseOptions, traverse};
 
-/// Browse farfield scenes.
+/// Browse farfield scenes, streamed from a memory server or from a file.
 #[derive(Debug, Parser)]
 #[command(name = "farfield", version, about)]
 struct Cli {
@@ -18,17 +23,35 @@ struct Cli {
 
 #[derive(Debug, Subcommand)]
 enum Command {
+    /// Render one view to a PNG, streaming pages from a server or reading a file.
+    Render(Box<RenderArgs>),
+    /// Build the default scene, serve it in-process, fly a client through it.
+    Demo {
+        /// Folder for the scene file, frames, CSV and summary.
+        #[arg(long, default_value = "farfield-demo")]
+        out: PathBuf,
+    },
+    /// Compare two PNGs: RMSE, PSNR and wrong-pixel fraction (exit 2 if sizes differ).
+    Compare {
+        /// The reference image.
+        a: PathBuf,
+        /// The image to measure against it.
+        b: PathBuf,
+        /// A pixel is wrong when any RGB channel differs by more than this.
+        #[arg(long, default_value_t = 8)]
+        tolerance: u8,
+        /// Print JSON; an infinite PSNR (identical images) is the string "inf".
+        #[arg(long)]
+        json: bool,
+    },
     /// Run the reference traversal on a paged file and report the cut.
     Traverse {
         #[arg(long)]
         file: PathBuf,
-        /// Camera orbit: azimuth,elevation (degrees),distance (scene radii).
-        #[arg(long, default_value = "30,25,3")]
-        orbit: String,
-        /// Image size, WIDTHxHEIGHT.
-        #[arg(long, default_value = "1024x768")]
-        size: String,
-        /// Projected-size threshold in pixels.
+        #[arg(long, value_parser = parse_orbit, default_value = "azimuth=30,elevation=25,distance=2.5")]
+        orbit: CameraSpec,
+        #[arg(long, value_parser = parse_size, default_value = "1024x768")]
+        size: (u32, u32),
         #[arg(long, default_value_t = 1.0)]
         threshold: f64,
         #[arg(long)]
@@ -36,31 +59,238 @@ enum Command {
     },
 }
 
-fn parse_triple(s: &str) -> anyhow::Result<[f64; 3]> {
-    let v: Vec<f64> = s
-        .split(',')
-        .map(|x| x.trim().parse::<f64>())
-        .collect::<Result<_, _>>()?;
-    match v[..] {
-        [a, b, c] if v.iter().all(|x| x.is_finite()) => Ok([a, b, c]),
-        _ => anyhow::bail!("expected three finite numbers separated by commas, got '{s}'"),
-    }
+#[derive(Debug, Clone, Copy, ValueEnum)]
+enum KernelArg {
+    Square,
+    Round,
 }
 
-fn parse_size(s: &str) -> anyhow::Result<(u32, u32)> {
-    let (w, h) = s
-        .split_once('x')
-        .ok_or_else(|| anyhow::anyhow!("size '{s}' is not WIDTHxHEIGHT"))?;
-    let (w, h): (u32, u32) = (w.parse()?, h.parse()?);
+#[derive(Debug, clap::Args)]
+struct RenderArgs {
+    /// Memory server, e.g. http://127.0.0.1:7878.
+    #[arg(long, requires = "scene", conflicts_with = "file")]
+    server: Option<String>,
+    /// Scene name on the server.
+    #[arg(long)]
+    scene: Option<String>,
+    /// Read a paged file directly (everything resident, no server).
+    #[arg(long, required_unless_present = "server")]
+    file: Option<PathBuf>,
+    /// eye=x,y,z,target=x,y,z,fov=DEG (world units).
+    #[arg(long, value_parser = parse_camera, conflicts_with = "orbit")]
+    camera: Option<CameraSpec>,
+    /// azimuth=DEG,elevation=DEG,distance=R (R in scene radii from the centre).
+    #[arg(long, value_parser = parse_orbit)]
+    orbit: Option<CameraSpec>,
+    #[arg(long, value_parser = parse_size, default_value = "800x600")]
+    size: (u32, u32),
+    /// The PNG to write; with --path, the folder for frames.csv (and frames).
+    #[arg(long)]
+    out: PathBuf,
+    /// Fly a camera path (JSON keyframes) instead of one camera.
+    #[arg(long, conflicts_with_all = ["camera", "orbit"])]
+    path: Option<PathBuf>,
+    /// Frames per path second, with --path.
+    #[arg(long, default_value_t = 10.0)]
+    fps: f64,
+    /// With --path, also write every frame as a PNG.
+    #[arg(long)]
+    write_frames: bool,
+    /// Stop when refined (default), after N frames, or after T milliseconds.
+    #[arg(long, value_parser = ["refined"], conflicts_with_all = ["frames", "ms"])]
+    until: Option<String>,
+    #[arg(long)]
+    frames: Option<u64>,
+    #[arg(long)]
+    ms: Option<f64>,
+    /// Final projected-size threshold in pixels.
+    #[arg(long, default_value_t = 1.0)]
+    threshold: f64,
+    #[arg(long, value_enum, default_value = "square")]
+    kernel: KernelArg,
+    /// Client page cache, MiB.
+    #[arg(long, default_value_t = 1024)]
+    cache_mib: u64,
+    /// Let the server push pages it predicts when idle.
+    #[arg(long)]
+    push: bool,
+    /// Give up after this many seconds (the image so far is still written).
+    #[arg(long, default_value_t = 120.0)]
+    timeout_s: f64,
+    #[arg(long)]
+    json: bool,
+}
+
+fn render(args: RenderArgs) -> anyhow::Result<()> {
+    let source = match (args.server, args.scene, args.file) {
+        (Some(url), Some(scene), None) => Source::Server { url, scene },
+        (None, _, Some(path)) => Source::File(path),
+        _ => anyhow::bail!("give --server URL --scene NAME, or --file FILE"),
+    };
+    let until = match (args.frames, args.ms) {
+        (Some(n), _) => Until::Frames(n.max(1)),
+        (_, Some(ms)) => Until::Millis(ms),
+        _ => Until::Refined,
+    };
     anyhow::ensure!(
-        w > 0 && h > 0 && w <= 16384 && h <= 16384,
-        "size {w}x{h} is out of range"
+        args.threshold.is_finite() && args.threshold >= 0.0,
+        "--threshold must be a non-negative number"
     );
-    Ok((w, h))
+    anyhow::ensure!(
+        args.timeout_s.is_finite() && args.timeout_s > 0.0,
+        "--timeout-s must be positive"
+    );
+    let job = RenderJob {
+        source,
+        camera: args.camera.or(args.orbit).unwrap_or_default(),
+        width: args.size.0,
+        height: args.size.1,
+        out: Some(args.out),
+        until,
+        threshold_px: args.threshold,
+        kernel: match args.kernel {
+            KernelArg::Square => Kernel::Square,
+            KernelArg::Round => Kernel::Round,
+        },
+        session: SessionOptions {
+            allow_push: args.push,
+            ..SessionOptions::default()
+        },
+        cache_bytes: (args.cache_mib.max(1) << 20) as usize,
+        timeout: Duration::from_secs_f64(args.timeout_s),
+    };
+    let mut renderer =
+        Renderer::new_headless(job.width, job.height).context("starting the renderer")?;
+    if let Some(path) = args.path {
+        return fly_path(
+            &job,
+            &path,
+            args.fps,
+            args.write_frames,
+            &mut renderer,
+            args.json,
+        );
+    }
+    let rendered = farfield_client::commands::render::run(&job, &mut renderer, false)?;
+    let r = &rendered.report;
+    if args.json {
+        println!("{}", serde_json::to_string(r)?);
+    } else {
+        println!(
+            "{}: {} frames, first image {:.1} ms, refined {}, {} nodes drawn at {} px, {} bytes in {} pages, overfetch {}, on {}",
+            job.out
+                .as_deref()
+                .map(|p| p.display().to_string())
+                .unwrap_or_default(),
+            r.frames,
+            r.time_to_first_image_ms.unwrap_or(f64::NAN),
+            r.time_to_refined_ms
+                .map_or("no".to_owned(), |t| format!("in {t:.1} ms")),
+            r.nodes_drawn,
+            r.threshold_px,
+            r.bytes_received,
+            r.pages_received,
+            r.overfetch_ratio
+                .map_or("-".to_owned(), |o| format!("{o:.2}")),
+            r.adapter
+        );
+    }
+    if !r.refined && until == Until::Refined {
+        anyhow::bail!(
+            "{}",
+            r.last_error.clone().unwrap_or_else(|| "not refined".into())
+        );
+    }
+    Ok(())
+}
+
+/// `render --path`: a flythrough with per-frame stats.
+fn fly_path(
+    job: &RenderJob,
+    path: &std::path::Path,
+    fps: f64,
+    write_frames: bool,
+    renderer: &mut Renderer,
+    json: bool,
+) -> anyhow::Result<()> {
+    use farfield_client::commands::fly::{FlyJob, fly, write_csv};
+    use farfield_client::render::SplatStyle;
+    use farfield_client::viewer::Viewer;
+    anyhow::ensure!(fps.is_finite() && fps > 0.0, "--fps must be positive");
+    let out = job.out.clone().unwrap_or_default();
+    std::fs::create_dir_all(&out).with_context(|| format!("creating {}", out.display()))?;
+    let started = Instant::now();
+    let mut viewer = match &job.source {
+        Source::File(file) => Viewer::open_file(file)?,
+        Source::Server { url, scene } => {
+            Viewer::open_remote(url, scene, job.session, job.cache_bytes)?
+        }
+    };
+    let fly_job = FlyJob {
+        path: farfield_client::path::CameraPath::load(path)?,
+        fps,
+        width: job.width,
+        height: job.height,
+        final_threshold_px: job.threshold_px,
+        target_frame_ms: 100.0,
+        style: SplatStyle {
+            kernel: job.kernel,
+            ..SplatStyle::default()
+        },
+        frames_dir: write_frames.then(|| out.join("frames")),
+        settle: true,
+        timeout: job.timeout,
+    };
+    let (stats, settle) = fly(&mut viewer, renderer, &fly_job, started)?;
+    write_csv(&out.join("frames.csv"), &stats)?;
+    let report = settle.report(
+        &viewer,
+        renderer,
+        matches!(job.source, Source::Server { .. }),
+    );
+    if json {
+        println!("{}", serde_json::to_string(&report)?);
+    } else {
+        println!(
+            "{}: {} frames, {} bytes received; per-frame stats in frames.csv",
+            out.display(),
+            stats.len(),
+            report.bytes_received
+        );
+    }
+    Ok(())
+}
+
+/// `farfield compare A B`: the error of image B against reference A.
+fn compare(a: PathBuf, b: PathBuf, tolerance: u8, json: bool) -> anyhow::Result<()> {
+    let c = farfield_client::eval::compare_files(&a, &b, tolerance)?;
+    if json {
+        println!("{}", c.metrics.to_json(c.width, c.height));
+    } else {
+        let (w, h, m) = (c.width, c.height, c.metrics);
+        println!("{} vs {} ({w}x{h}): {m}", a.display(), b.display());
+    }
+    Ok(())
 }
 
 fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
+        Command::Compare {
+            a,
+            b,
+            tolerance,
+            json,
+        } => compare(a, b, tolerance, json),
+        Command::Render(args) => render(*args),
+        Command::Demo { out } => {
+            let summary =
+                farfield_client::commands::demo::run(&farfield_client::commands::demo::DemoJob {
+                    out,
+                    ..Default::default()
+                })?;
+            print!("{}", summary.text);
+            Ok(())
+        }
         Command::Traverse {
             file,
             orbit,
@@ -68,15 +298,12 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             threshold,
             json,
         } => {
-            let [az, el, dist] = parse_triple(&orbit)?;
-            let (w, h) = parse_size(&size)?;
             anyhow::ensure!(
                 threshold.is_finite() && threshold >= 0.0,
                 "threshold must be a non-negative number"
             );
             let hierarchy = farfield_client::local::load_file(&file)?;
-            let header = &hierarchy.header;
-            let camera = Camera::orbit(header.root_center, header.root_radius, az, el, dist, w, h);
+            let camera = orbit.resolve(&hierarchy.header, size.0, size.1);
             let started = Instant::now();
             let cut = traverse(
                 &hierarchy,
@@ -88,13 +315,11 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             );
             let ms = started.elapsed().as_secs_f64() * 1e3;
             if json {
-                println!(
-                    "{{\"splats\":{},\"visited\":{},\"frustum_culled\":{},\"backface_culled\":{},\"traverse_ms\":{ms}}}",
-                    cut.splats.len(),
-                    cut.visited,
-                    cut.frustum_culled,
-                    cut.backface_culled
-                );
+                let j = serde_json::json!({
+                    "splats": cut.splats.len(), "visited": cut.visited, "frustum_culled": cut.frustum_culled,
+                    "backface_culled": cut.backface_culled, "traverse_ms": ms,
+                });
+                println!("{j}");
             } else {
                 println!(
                     "{}: {} splats from {} nodes visited ({} frustum-culled, {} backface-culled) in {ms:.2} ms",
@@ -111,10 +336,19 @@ fn run(cli: Cli) -> anyhow::Result<()> {
 }
 
 fn main() -> ExitCode {
+    tracing_subscriber::fmt()
+        .with_env_filter(tracing_subscriber::EnvFilter::from_default_env())
+        .with_writer(std::io::stderr)
+        .init();
     match run(Cli::parse()) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
             eprintln!("error: {e:#}");
+            // `farfield compare` on images of different sizes.
+            let compare = e.downcast_ref::<farfield_client::eval::CompareError>();
+            if compare.is_some_and(|c| c.is_size_mismatch()) {
+                return ExitCode::from(2);
+            }
             ExitCode::FAILURE
         }
     }

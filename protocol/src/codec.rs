@@ -64,12 +64,17 @@ pub fn frame_kind(frame: &[u8]) -> Result<(FrameKind, &[u8]), CodecError> {
 pub fn decode_control<T: DeserializeOwned>(frame: &[u8]) -> Result<T, CodecError> {
     let (kind, payload) = frame_kind(frame)?;
     if kind != FrameKind::Control {
-        return Err(CodecError::WrongKind { expected: FrameKind::Control });
+        return Err(CodecError::WrongKind {
+            expected: FrameKind::Control,
+        });
     }
     let (message, used) = bincode::serde::decode_from_slice(payload, config())
         .map_err(|e| CodecError::Malformed(e.to_string()))?;
     if used != payload.len() {
-        return Err(CodecError::Malformed(format!("{} trailing bytes", payload.len() - used)));
+        return Err(CodecError::Malformed(format!(
+            "{} trailing bytes",
+            payload.len() - used
+        )));
     }
     Ok(message)
 }
@@ -84,16 +89,36 @@ mod tests {
     #[test]
     fn messages_round_trip() {
         let messages = [
-            ClientMessage::Hello { protocol_version: 1, max_in_flight_bytes: 1 << 20, allow_push: true },
-            ClientMessage::Request { pages: vec![PageWish { page: 3, priority: 2.5 }] },
-            ClientMessage::Cancel { pages: vec![1, 2, 3] },
+            ClientMessage::Hello {
+                protocol_version: 1,
+                max_in_flight_bytes: 1 << 20,
+                allow_push: true,
+            },
+            ClientMessage::Request {
+                pages: vec![PageWish {
+                    page: 3,
+                    priority: 2.5,
+                }],
+            },
+            ClientMessage::Cancel {
+                pages: vec![1, 2, 3],
+            },
             ClientMessage::Received { pages: vec![] },
         ];
         for m in messages {
-            assert_eq!(decode_control::<ClientMessage>(&encode_control(&m)).unwrap(), m);
+            assert_eq!(
+                decode_control::<ClientMessage>(&encode_control(&m)).unwrap(),
+                m
+            );
         }
-        let s = ServerMessage::Scene { name: "bunny".into(), header: vec![1, 2, 3] };
-        assert_eq!(decode_control::<ServerMessage>(&encode_control(&s)).unwrap(), s);
+        let s = ServerMessage::Scene {
+            name: "bunny".into(),
+            header: vec![1, 2, 3],
+        };
+        assert_eq!(
+            decode_control::<ServerMessage>(&encode_control(&s)).unwrap(),
+            s
+        );
         let page = encode_page_frame(&[9, 9]);
         assert_eq!(frame_kind(&page).unwrap(), (FrameKind::Page, &[9u8, 9][..]));
         assert!(decode_control::<ClientMessage>(&page).is_err());

@@ -42,6 +42,8 @@ pub struct TraverseOptions {
     pub backface_culling: bool,
     /// Near-plane distance as a fraction of the root radius.
     pub near_fraction: f64,
+    /// Fill [`Cut::touched_pages`] (for cache recency and overfetch).
+    pub record_pages: bool,
 }
 
 impl Default for TraverseOptions {
@@ -50,6 +52,7 @@ impl Default for TraverseOptions {
             threshold_px: 1.0,
             backface_culling: true,
             near_fraction: 1e-4,
+            record_pages: false,
         }
     }
 }
@@ -63,6 +66,9 @@ pub struct Cut {
     pub visited: u64,
     pub frustum_culled: u64,
     pub backface_culled: u64,
+    /// With [`TraverseOptions::record_pages`]: every page a visited node
+    /// lives in (the cut, its ancestors and culled siblings), ascending.
+    pub touched_pages: Vec<u32>,
 }
 
 #[derive(Clone, Copy)]
@@ -92,6 +98,12 @@ pub fn traverse_into(h: &Hierarchy, camera: &Camera, options: &TraverseOptions, 
     cut.visited = 0;
     cut.frustum_culled = 0;
     cut.backface_culled = 0;
+    cut.touched_pages.clear();
+    let mut touched = if options.record_pages {
+        vec![false; h.header.pages.len()]
+    } else {
+        Vec::new()
+    };
     // Table lookups hoisted out of the loop (each accessor checks a OnceLock).
     let spheres = sphere_codec::sphere_table();
     let normals = sphere_codec::normal_table();
@@ -130,6 +142,9 @@ pub fn traverse_into(h: &Hierarchy, camera: &Camera, options: &TraverseOptions, 
             continue;
         };
         cut.visited += 1;
+        if let Some(t) = touched.get_mut(item.page as usize) {
+            *t = true;
+        }
         if !item.inside {
             match view.classify(item.center, item.radius) {
                 Containment::Outside => {
@@ -199,6 +214,8 @@ pub fn traverse_into(h: &Hierarchy, camera: &Camera, options: &TraverseOptions, 
             });
         }
     }
+    cut.touched_pages
+        .extend((0..touched.len() as u32).filter(|&p| touched[p as usize]));
     cut.wanted.extend(
         wanted
             .into_iter()

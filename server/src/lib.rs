@@ -8,9 +8,12 @@
 //! - [`cli`]: the `farfield-server` subcommands, callable in-process.
 //! - [`store`]: writes the paged file atomically and reads it back through a
 //!   memory map, verifying page checksums.
+//! - [`serve`]: the memory server: HTTP and websocket streaming of pages in
+//!   priority order, shared page cache, prefetch, metrics.
 
 pub mod build;
 pub mod cli;
 pub mod import;
 pub mod scene;
+pub mod serve;
 pub mod store;

@@ -6,6 +6,7 @@ mod extremes;
 mod holes;
 mod layout;
 mod real_data;
+mod serve;
 mod traversal;
 
 use std::path::Path;

@@ -79,8 +79,7 @@ pub fn traverse_file(file: &Path, repeats: usize, as_json: bool) -> anyhow::Resu
     let header = &h.header;
     let options = TraverseOptions {
         threshold_px: 1.0,
-        backface_culling: true,
-        near_fraction: 1e-4,
+        ..TraverseOptions::default()
     };
     let mut rates = Vec::new();
     let mut visited = 0;

@@ -7,7 +7,9 @@ mod bench;
 mod build;
 mod inspect;
 pub mod memory;
+mod serve;
 
+use std::net::SocketAddr;
 use std::path::PathBuf;
 
 use clap::{Parser, Subcommand};
@@ -29,6 +31,8 @@ pub enum Command {
     /// Measure build throughput or traversal rate.
     #[command(subcommand)]
     Bench(BenchCommand),
+    /// Serve every `*.ff` scene in a folder to streaming clients until SIGINT or SIGTERM.
+    Serve(ServeArgs),
 }
 
 #[derive(Debug, clap::Args)]
@@ -53,6 +57,23 @@ pub struct BuildArgs {
 #[derive(Debug, clap::Args)]
 pub struct InspectArgs {
     pub file: PathBuf,
+    #[arg(long)]
+    pub json: bool,
+}
+
+#[derive(Debug, clap::Args)]
+pub struct ServeArgs {
+    /// Folder of scene files (`*.ff`; each is served under its file stem).
+    #[arg(long)]
+    pub scenes: PathBuf,
+    /// Address to listen on (port 0 picks a free port; the first line of
+    /// output says which).
+    #[arg(long, default_value = "127.0.0.1:7878")]
+    pub listen: SocketAddr,
+    /// Bound on the shared page cache, in bytes.
+    #[arg(long, default_value_t = crate::serve::DEFAULT_CACHE_BYTES)]
+    pub cache_bytes: u64,
+    /// Print the final counters as one JSON object on shutdown.
     #[arg(long)]
     pub json: bool,
 }
@@ -106,6 +127,7 @@ pub fn run(cli: Cli) -> anyhow::Result<Report> {
             repeats,
             json,
         }) => bench::traverse_file(&file, repeats, json),
+        Command::Serve(args) => serve::run(&args),
     }
 }
 

@@ -119,6 +119,14 @@ impl SceneFile {
         self.map.get(start..start.checked_add(e.length as usize)?)
     }
 
+    /// The file's header bytes as stored (fixed part, directory and CRC),
+    /// which the memory server sends verbatim so clients decode exactly
+    /// what is on disk.
+    pub fn header_bytes(&self) -> &[u8] {
+        let len = FileHeader::encoded_len(self.header.pages.len()).min(self.map.len());
+        &self.map[..len]
+    }
+
     /// Checks page `index`'s checksum and header.
     pub fn verify_page(&self, index: usize) -> Result<(), FormatError> {
         let bytes = self.page_bytes(index).ok_or(FormatError::BadPage {

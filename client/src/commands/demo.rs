@@ -1,0 +1,163 @@
+//! `farfield demo`: the whole system on the built-in scene, in one process.
+//!
+//! Builds `gen:island` (once; the file is reused on later runs), starts an
+//! embedded memory server on a loopback port, flies a client along a
+//! built-in path while pages stream, lets the last view refine, and writes
+//! the frames, a per-frame CSV and a short summary.
+
+use std::fmt::Write as _;
+use std::net::SocketAddr;
+use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
+
+use anyhow::Context;
+use farfield_server::build::{BuildOptions, build_spheres};
+use farfield_server::import::{Params, generate::DEFAULT_SCENE, load_input};
+use farfield_server::store::{SceneFile, write_atomic};
+
+use super::fly::{FlyJob, fly, write_csv};
+use crate::net::SessionOptions;
+use crate::path::CameraPath;
+use crate::render::{Renderer, SplatStyle};
+use crate::viewer::Viewer;
+
+/// The demo's knobs (all have defaults; the command takes only `--out`).
+#[derive(Debug, Clone)]
+pub struct DemoJob {
+    pub out: PathBuf,
+    pub width: u32,
+    pub height: u32,
+    pub path_seconds: f64,
+    pub fps: f64,
+}
+
+impl Default for DemoJob {
+    fn default() -> Self {
+        Self {
+            out: PathBuf::from("farfield-demo"),
+            width: 640,
+            height: 360,
+            path_seconds: 6.0,
+            fps: 10.0,
+        }
+    }
+}
+
+/// What the demo did, also written to `summary.txt`.
+#[derive(Debug, Clone)]
+pub struct DemoSummary {
+    pub scene: PathBuf,
+    pub built: bool,
+    pub frames: usize,
+    pub time_to_first_image_ms: f64,
+    pub time_to_refined_ms: Option<f64>,
+    pub bytes_received: u64,
+    pub text: String,
+}
+
+/// The built-in scene's file in `dir`, built if it is missing or unreadable.
+pub fn ensure_scene(dir: &Path) -> anyhow::Result<(PathBuf, bool)> {
+    let path = dir.join("island.ff");
+    if SceneFile::open(&path).is_ok_and(|f| f.corrupt_pages().is_empty()) {
+        return Ok((path, false));
+    }
+    let scene = load_input(DEFAULT_SCENE, &Params::default())?;
+    let (file, _) = build_spheres(scene, &BuildOptions::default())?;
+    write_atomic(&path, &file)?;
+    Ok((path, true))
+}
+
+pub fn run(job: &DemoJob) -> anyhow::Result<DemoSummary> {
+    std::fs::create_dir_all(&job.out).with_context(|| format!("creating {}", job.out.display()))?;
+    let (scene, built) = ensure_scene(&job.out)?;
+    let runtime = tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(2)
+        .enable_all()
+        .build()?;
+    let config = farfield_server::serve::ServerConfig {
+        scenes_dir: job.out.clone(),
+        listen: SocketAddr::from(([127, 0, 0, 1], 0)),
+        cache_bytes: 64 << 20,
+    };
+    let server = runtime
+        .block_on(farfield_server::serve::start(config))
+        .context("starting the embedded server")?;
+    let url = format!("http://{}", server.local_addr());
+    let mut renderer = Renderer::new_headless(job.width, job.height)?;
+    let started = Instant::now();
+    let mut viewer = Viewer::open_remote(&url, "island", SessionOptions::default(), 512 << 20)?;
+    let fly_job = FlyJob {
+        path: CameraPath::builtin(job.path_seconds),
+        fps: job.fps,
+        width: job.width,
+        height: job.height,
+        final_threshold_px: 1.0,
+        target_frame_ms: 100.0,
+        style: SplatStyle::default(),
+        frames_dir: Some(job.out.join("frames")),
+        settle: true,
+        timeout: Duration::from_secs(300),
+    };
+    let (stats, settle) = fly(&mut viewer, &mut renderer, &fly_job, started)?;
+    drop(viewer);
+    runtime
+        .block_on(server.shutdown())
+        .context("stopping the embedded server")?;
+    write_csv(&job.out.join("frames.csv"), &stats)?;
+    let first = stats.first().map_or(0.0, |s| s.time_ms);
+    let bytes = stats.last().map_or(0, |s| s.bytes_received);
+    let mut text = String::new();
+    let _ = writeln!(
+        text,
+        "farfield demo: {} ({})",
+        scene.display(),
+        if built { "built now" } else { "reused" }
+    );
+    let _ = writeln!(text, "adapter: {}", renderer.adapter_description());
+    let _ = writeln!(
+        text,
+        "frames: {} at {}x{} ({} along the path, then resting)",
+        stats.len(),
+        job.width,
+        job.height,
+        stats.iter().filter(|s| !s.resting).count()
+    );
+    let _ = writeln!(text, "first image: {first:.1} ms after connecting");
+    match settle.time_to_refined_ms {
+        Some(ms) => {
+            let _ = writeln!(
+                text,
+                "refined to 1 px at the last view: {ms:.0} ms after connecting"
+            );
+        }
+        None => {
+            let _ = writeln!(
+                text,
+                "not refined: {}",
+                settle.error.clone().unwrap_or_default()
+            );
+        }
+    }
+    let _ = writeln!(text, "bytes received: {bytes}");
+    if let Some(last) = stats.last() {
+        let _ = writeln!(
+            text,
+            "last frame: {} splats at threshold {:.2} px",
+            last.nodes_drawn, last.threshold_px
+        );
+    }
+    let _ = writeln!(
+        text,
+        "files: frames/frame_NNNN.png, frames.csv, summary.txt"
+    );
+    std::fs::write(job.out.join("summary.txt"), &text)?;
+    Ok(DemoSummary {
+        scene,
+        built,
+        frames: stats.len(),
+        time_to_first_image_ms: first,
+        time_to_refined_ms: settle.time_to_refined_ms,
+        bytes_received: bytes,
+        text,
+    })
+}

@@ -1,0 +1,5 @@
+//! One module per `farfield` subcommand; `main.rs` only parses and dispatches.
+
+pub mod demo;
+pub mod fly;
+pub mod render;

@@ -1,0 +1,249 @@
+//! The client's side of the websocket session (protocol `messages`).
+//!
+//! [`Connection::open`] starts a background task on a tokio runtime that
+//! connects, says hello, and forwards what arrives as [`NetEvent`]s; the
+//! renderer's loop sends [`Outgoing`] wishes back. When the server goes away
+//! the task reports [`NetEvent::Disconnected`] and reconnects with backoff;
+//! after [`NetEvent::Connected`] the loop asks again for whatever it still
+//! lacks, so nothing it already holds is fetched twice.
+
+use std::time::Duration;
+
+use farfield_protocol::codec::{self, CodecError};
+use farfield_protocol::messages::{
+    ClientMessage, FrameKind, PROTOCOL_VERSION, PageWish, ServerMessage,
+};
+use futures_util::{SinkExt, StreamExt};
+use tokio::sync::mpsc;
+use tokio_tungstenite::tungstenite::Message;
+
+/// Options a client announces in its hello.
+#[derive(Debug, Clone, Copy)]
+pub struct SessionOptions {
+    pub max_in_flight_bytes: u64,
+    pub allow_push: bool,
+}
+
+impl Default for SessionOptions {
+    fn default() -> Self {
+        Self {
+            max_in_flight_bytes: 4 << 20,
+            allow_push: false,
+        }
+    }
+}
+
+/// What the network task reports.
+#[derive(Debug)]
+pub enum NetEvent {
+    /// A session is open: the scene's header bytes as stored.
+    Connected { header: Vec<u8> },
+    /// A page's stored bytes (unverified: the receiver checks them).
+    Page { bytes: Vec<u8> },
+    /// The server reported a problem; fatal ones end the session.
+    ServerError { message: String, fatal: bool },
+    /// The connection dropped (or could not be made); the task retries.
+    Disconnected { reason: String },
+}
+
+/// What the render loop asks the network task to send.
+#[derive(Debug)]
+pub enum Outgoing {
+    Request(Vec<PageWish>),
+    Cancel(Vec<u32>),
+    Received(Vec<u32>),
+}
+
+/// A live session with the memory server, reconnecting as needed.
+#[derive(Debug)]
+pub struct Connection {
+    pub events: mpsc::UnboundedReceiver<NetEvent>,
+    outgoing: mpsc::UnboundedSender<Outgoing>,
+    task: tokio::task::JoinHandle<()>,
+}
+
+impl Connection {
+    /// Starts connecting to `ws://SERVER/scenes/NAME/stream` on `runtime`.
+    /// `server` is `http://host:port` or `host:port`.
+    pub fn open(
+        runtime: &tokio::runtime::Handle,
+        server: &str,
+        scene: &str,
+        options: SessionOptions,
+    ) -> Self {
+        let url = stream_url(server, scene);
+        let (event_tx, events) = mpsc::unbounded_channel();
+        let (outgoing, out_rx) = mpsc::unbounded_channel();
+        let task = runtime.spawn(run(url, options, event_tx, out_rx));
+        Self {
+            events,
+            outgoing,
+            task,
+        }
+    }
+
+    /// Queues a message; false when the network task has ended.
+    pub fn send(&self, message: Outgoing) -> bool {
+        self.outgoing.send(message).is_ok()
+    }
+}
+
+impl Drop for Connection {
+    fn drop(&mut self) {
+        self.task.abort();
+    }
+}
+
+/// The websocket URL of a scene's stream.
+pub fn stream_url(server: &str, scene: &str) -> String {
+    let base = server.trim_end_matches('/');
+    let base = base
+        .strip_prefix("http://")
+        .map(|rest| format!("ws://{rest}"))
+        .or_else(|| {
+            base.strip_prefix("https://")
+                .map(|rest| format!("wss://{rest}"))
+        })
+        .unwrap_or_else(|| {
+            if base.contains("://") {
+                base.to_owned()
+            } else {
+                format!("ws://{base}")
+            }
+        });
+    format!("{base}/scenes/{scene}/stream")
+}
+
+/// Connects, serves one session, and reconnects with backoff until the
+/// receiver goes away or the server says something fatal.
+async fn run(
+    url: String,
+    options: SessionOptions,
+    events: mpsc::UnboundedSender<NetEvent>,
+    mut outgoing: mpsc::UnboundedReceiver<Outgoing>,
+) {
+    let mut backoff = Duration::from_millis(50);
+    loop {
+        let reason = match session(&url, options, &events, &mut outgoing).await {
+            Ok(SessionEnd::ReceiverGone) => return,
+            Ok(SessionEnd::Fatal) => return,
+            Ok(SessionEnd::Closed(reason)) => {
+                backoff = Duration::from_millis(50);
+                reason
+            }
+            Err(reason) => reason,
+        };
+        if events.send(NetEvent::Disconnected { reason }).is_err() {
+            return;
+        }
+        // Wishes queued while disconnected are stale: the loop re-asks after
+        // the next Connected.
+        while outgoing.try_recv().is_ok() {}
+        tokio::time::sleep(backoff).await;
+        backoff = (backoff * 2).min(Duration::from_secs(2));
+    }
+}
+
+enum SessionEnd {
+    ReceiverGone,
+    Fatal,
+    Closed(String),
+}
+
+async fn session(
+    url: &str,
+    options: SessionOptions,
+    events: &mpsc::UnboundedSender<NetEvent>,
+    outgoing: &mut mpsc::UnboundedReceiver<Outgoing>,
+) -> Result<SessionEnd, String> {
+    let (socket, _) = tokio_tungstenite::connect_async(url)
+        .await
+        .map_err(|e| format!("connect {url}: {e}"))?;
+    let (mut sink, mut stream) = socket.split();
+    let hello = ClientMessage::Hello {
+        protocol_version: PROTOCOL_VERSION,
+        max_in_flight_bytes: options.max_in_flight_bytes,
+        allow_push: options.allow_push,
+    };
+    sink.send(Message::Binary(codec::encode_control(&hello).into()))
+        .await
+        .map_err(|e| e.to_string())?;
+    loop {
+        tokio::select! {
+            incoming = stream.next() => {
+                let Some(incoming) = incoming else { return Ok(SessionEnd::Closed("server closed the stream".into())) };
+                let message = incoming.map_err(|e| e.to_string())?;
+                let event = match message {
+                    Message::Binary(frame) => match decode(&frame) {
+                        Ok(Some(event)) => event,
+                        Ok(None) => continue,
+                        Err(e) => return Err(format!("bad frame from server: {e}")),
+                    },
+                    Message::Close(frame) => {
+                        let reason = frame.map(|f| f.reason.to_string()).unwrap_or_default();
+                        return Ok(SessionEnd::Closed(format!("server closed the connection {reason}")));
+                    }
+                    _ => continue,
+                };
+                let fatal = matches!(event, NetEvent::ServerError { fatal: true, .. });
+                if events.send(event).is_err() {
+                    return Ok(SessionEnd::ReceiverGone);
+                }
+                if fatal {
+                    return Ok(SessionEnd::Fatal);
+                }
+            }
+            wish = outgoing.recv() => {
+                let Some(wish) = wish else { return Ok(SessionEnd::ReceiverGone) };
+                let message = match wish {
+                    Outgoing::Request(pages) => ClientMessage::Request { pages },
+                    Outgoing::Cancel(pages) => ClientMessage::Cancel { pages },
+                    Outgoing::Received(pages) => ClientMessage::Received { pages },
+                };
+                sink.send(Message::Binary(codec::encode_control(&message).into())).await.map_err(|e| e.to_string())?;
+            }
+        }
+    }
+}
+
+/// A server frame as an event; `None` for a hello of the right version,
+/// which needs no action.
+fn decode(frame: &[u8]) -> Result<Option<NetEvent>, CodecError> {
+    let (kind, bytes) = codec::frame_kind(frame)?;
+    if kind == FrameKind::Page {
+        return Ok(Some(NetEvent::Page {
+            bytes: bytes.to_vec(),
+        }));
+    }
+    Ok(match codec::decode_control::<ServerMessage>(frame)? {
+        ServerMessage::Hello {
+            protocol_version, ..
+        } if protocol_version != PROTOCOL_VERSION => Some(NetEvent::ServerError {
+            message: format!(
+                "server speaks protocol version {protocol_version}, this client {PROTOCOL_VERSION}"
+            ),
+            fatal: true,
+        }),
+        ServerMessage::Hello { .. } => None,
+        ServerMessage::Scene { header, .. } => Some(NetEvent::Connected { header }),
+        ServerMessage::Error { message, fatal } => Some(NetEvent::ServerError { message, fatal }),
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn urls() {
+        assert_eq!(
+            stream_url("http://127.0.0.1:80/", "a"),
+            "ws://127.0.0.1:80/scenes/a/stream"
+        );
+        assert_eq!(
+            stream_url("127.0.0.1:80", "a"),
+            "ws://127.0.0.1:80/scenes/a/stream"
+        );
+        assert_eq!(stream_url("ws://h:1", "b"), "ws://h:1/scenes/b/stream");
+    }
+}

@@ -1,0 +1,132 @@
+//! The offscreen frame: color and depth textures and the readback buffer.
+//!
+//! Color is `Rgba8Unorm` (not sRGB) so the bytes of the scene come back
+//! unchanged; depth is `Depth32Float`, used reversed (1 near, 0 far).
+//! Texture-to-buffer copies need rows padded to 256 bytes; [`Target::read`]
+//! strips the padding.
+
+use std::sync::mpsc;
+
+use anyhow::Context;
+
+/// Color format of the frame.
+pub(crate) const COLOR_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8Unorm;
+/// Depth format of the frame.
+pub(crate) const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
+
+/// Textures and readback buffer for one frame size.
+#[derive(Debug)]
+pub(crate) struct Target {
+    pub width: u32,
+    pub height: u32,
+    color: wgpu::Texture,
+    pub color_view: wgpu::TextureView,
+    pub depth_view: wgpu::TextureView,
+    readback: wgpu::Buffer,
+    padded_row: u32,
+}
+
+impl Target {
+    /// Allocates a frame of `width` x `height` (each at least 1).
+    pub fn new(device: &wgpu::Device, width: u32, height: u32) -> Self {
+        let (width, height) = (width.max(1), height.max(1));
+        let size = wgpu::Extent3d {
+            width,
+            height,
+            depth_or_array_layers: 1,
+        };
+        let texture = |label, format, usage| {
+            device.create_texture(&wgpu::TextureDescriptor {
+                label: Some(label),
+                size,
+                mip_level_count: 1,
+                sample_count: 1,
+                dimension: wgpu::TextureDimension::D2,
+                format,
+                usage,
+                view_formats: &[],
+            })
+        };
+        let color = texture(
+            "farfield color",
+            COLOR_FORMAT,
+            wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
+        );
+        let depth = texture(
+            "farfield depth",
+            DEPTH_FORMAT,
+            wgpu::TextureUsages::RENDER_ATTACHMENT,
+        );
+        let align = wgpu::COPY_BYTES_PER_ROW_ALIGNMENT;
+        let padded_row = (width * 4).div_ceil(align) * align;
+        let readback = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("farfield readback"),
+            size: u64::from(padded_row) * u64::from(height),
+            usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
+            mapped_at_creation: false,
+        });
+        Self {
+            width,
+            height,
+            color_view: color.create_view(&Default::default()),
+            depth_view: depth.create_view(&Default::default()),
+            color,
+            readback,
+            padded_row,
+        }
+    }
+
+    /// Records the copy of the color texture into the readback buffer.
+    pub fn copy_out(&self, encoder: &mut wgpu::CommandEncoder) {
+        encoder.copy_texture_to_buffer(
+            wgpu::TexelCopyTextureInfo {
+                texture: &self.color,
+                mip_level: 0,
+                origin: wgpu::Origin3d::ZERO,
+                aspect: wgpu::TextureAspect::All,
+            },
+            wgpu::TexelCopyBufferInfo {
+                buffer: &self.readback,
+                layout: wgpu::TexelCopyBufferLayout {
+                    offset: 0,
+                    bytes_per_row: Some(self.padded_row),
+                    rows_per_image: Some(self.height),
+                },
+            },
+            wgpu::Extent3d {
+                width: self.width,
+                height: self.height,
+                depth_or_array_layers: 1,
+            },
+        );
+    }
+
+    /// Waits for the copy submitted after [`Self::copy_out`] and returns
+    /// tightly packed RGBA rows, top row first.
+    pub fn read(&self, device: &wgpu::Device) -> anyhow::Result<Vec<u8>> {
+        let (tx, rx) = mpsc::channel();
+        self.readback.map_async(wgpu::MapMode::Read, .., move |r| {
+            // The receiver outlives the poll below; a failed send cannot happen.
+            let _ = tx.send(r);
+        });
+        device
+            .poll(wgpu::PollType::wait_indefinitely())
+            .context("waiting for the GPU")?;
+        rx.recv()
+            .context("readback callback never ran")?
+            .context("mapping the readback buffer")?;
+        let row = self.width as usize * 4;
+        let mut rgba = Vec::with_capacity(row * self.height as usize);
+        {
+            let mapped = self
+                .readback
+                .get_mapped_range(..)
+                .context("reading the readback buffer")?;
+            for padded in mapped.chunks(self.padded_row as usize) {
+                rgba.extend_from_slice(&padded[..row]);
+            }
+        }
+        self.readback.unmap();
+        Ok(rgba)
+    }
+}

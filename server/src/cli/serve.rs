@@ -1,0 +1,99 @@
+//! `farfield-server serve`: runs the memory server until SIGINT or SIGTERM.
+//!
+//! The command line is synchronous, so this builds a tokio runtime, starts
+//! [`crate::serve`] in it, prints `listening on ADDR` as the first line of
+//! stdout at once (scripts and tests pass port 0 and read the real port
+//! from it), and blocks until a signal. The returned report holds the
+//! final counters.
+
+use std::io::Write;
+
+use serde_json::json;
+
+use super::{Report, ServeArgs};
+use crate::serve::{ServerConfig, start};
+
+pub fn run(args: &ServeArgs) -> anyhow::Result<Report> {
+    let runtime = tokio::runtime::Builder::new_multi_thread()
+        .enable_all()
+        .thread_name("farfield-serve")
+        .build()?;
+    let snapshot = runtime.block_on(async {
+        // Handlers go in before the address is printed, so a script that
+        // signals as soon as it reads the line never kills us uncleanly.
+        let mut signals = Signals::new()?;
+        let server = start(ServerConfig {
+            scenes_dir: args.scenes.clone(),
+            listen: args.listen,
+            cache_bytes: args.cache_bytes,
+        })
+        .await?;
+        {
+            let mut out = std::io::stdout().lock();
+            writeln!(out, "listening on {}", server.local_addr())?;
+            out.flush()?;
+        }
+        tokio::select! {
+            () = signals.recv() => tracing::info!("signal received, shutting down"),
+            () = server.shutdown_requested() => {}
+        }
+        anyhow::Ok(server.shutdown().await?)
+    })?;
+    let text = format!(
+        "served {} pages ({} bytes, {} pushed) over {} connections; cache {} hits, {} misses; \
+         {} malformed frames, {} corrupt pages",
+        snapshot.pages_served,
+        snapshot.bytes_served,
+        snapshot.pages_pushed,
+        snapshot.connections_total,
+        snapshot.cache_hits,
+        snapshot.cache_misses,
+        snapshot.malformed_frames,
+        snapshot.corrupt_pages,
+    );
+    Ok(Report {
+        json: json!({ "scenes_dir": args.scenes, "metrics": snapshot }),
+        text,
+        exit_code: 0,
+        as_json: args.json,
+    })
+}
+
+/// SIGINT (Ctrl-C) and, on Unix, SIGTERM, registered when created.
+struct Signals {
+    #[cfg(unix)]
+    interrupt: tokio::signal::unix::Signal,
+    #[cfg(unix)]
+    terminate: tokio::signal::unix::Signal,
+}
+
+impl Signals {
+    fn new() -> std::io::Result<Self> {
+        #[cfg(unix)]
+        {
+            use tokio::signal::unix::{SignalKind, signal};
+            Ok(Self {
+                interrupt: signal(SignalKind::interrupt())?,
+                terminate: signal(SignalKind::terminate())?,
+            })
+        }
+        #[cfg(not(unix))]
+        {
+            Ok(Self {})
+        }
+    }
+
+    async fn recv(&mut self) {
+        #[cfg(unix)]
+        {
+            tokio::select! {
+                _ = self.interrupt.recv() => {}
+                _ = self.terminate.recv() => {}
+            }
+        }
+        #[cfg(not(unix))]
+        {
+            let _ = tokio::signal::ctrl_c().await;
+        }
+    }
+}

@@ -1,0 +1,181 @@
+//! The page cache: hot pages of every scene, shared by all connections,
+//! bounded in bytes.
+//!
+//! Values are ready-to-send page frames (the kind byte, then the page's
+//! stored bytes) copied out of the memory map, so sending a cached page to
+//! any number of clients is a reference-count increment, never a copy or a
+//! re-encode. A page's checksum is verified once, when it enters the cache;
+//! a page that fails is reported and never cached or sent.
+
+use std::sync::Mutex;
+use std::sync::atomic::Ordering;
+
+use axum::body::Bytes;
+use farfield_protocol::FormatError;
+use farfield_protocol::codec::encode_page_frame;
+use lru::LruCache;
+
+use super::catalog::ServedScene;
+use super::metrics::Metrics;
+
+/// (scene id, page index).
+pub type PageKey = (u32, u32);
+
+/// A byte-bounded LRU of page frames.
+#[derive(Debug)]
+pub struct PageCache {
+    inner: Mutex<Inner>,
+    capacity: u64,
+}
+
+#[derive(Debug)]
+struct Inner {
+    lru: LruCache<PageKey, Bytes>,
+    bytes: u64,
+}
+
+impl PageCache {
+    pub fn new(capacity: u64, metrics: &Metrics) -> Self {
+        metrics
+            .cache_capacity_bytes
+            .store(capacity, Ordering::Relaxed);
+        Self {
+            inner: Mutex::new(Inner {
+                lru: LruCache::unbounded(),
+                bytes: 0,
+            }),
+            capacity,
+        }
+    }
+
+    fn lock(&self) -> std::sync::MutexGuard<'_, Inner> {
+        // A panic while holding the lock cannot leave the LRU inconsistent
+        // in a way that matters (worst case a byte count off), so recover.
+        self.inner.lock().unwrap_or_else(|e| e.into_inner())
+    }
+
+    /// The cached frame, made most recently used.
+    pub fn get(&self, key: PageKey) -> Option<Bytes> {
+        self.lock().lru.get(&key).cloned()
+    }
+
+    /// Whether `key` is cached, without touching its recency.
+    pub fn contains(&self, key: PageKey) -> bool {
+        self.lock().lru.contains(&key)
+    }
+
+    /// Adds a frame, evicting least recently used frames past the bound. A
+    /// frame larger than the whole cache is not kept.
+    pub fn insert(&self, key: PageKey, frame: Bytes, metrics: &Metrics) {
+        let len = frame.len() as u64;
+        if len > self.capacity {
+            return;
+        }
+        let mut inner = self.lock();
+        if let Some(old) = inner.lru.put(key, frame) {
+            inner.bytes -= old.len() as u64;
+        }
+        inner.bytes += len;
+        while inner.bytes > self.capacity {
+            match inner.lru.pop_lru() {
+                Some((_, old)) => inner.bytes -= old.len() as u64,
+                None => break,
+            }
+        }
+        metrics.cache_bytes.store(inner.bytes, Ordering::Relaxed);
+        metrics
+            .cache_pages
+            .store(inner.lru.len() as u64, Ordering::Relaxed);
+    }
+
+    /// A page's frame for sending: from the cache (a hit) or read from the
+    /// map and verified (a miss). Blocking on a miss: the map may fault in
+    /// from disk, so async callers use [`PageCache::fetch`].
+    pub fn load(
+        &self,
+        scene: &ServedScene,
+        page: u32,
+        metrics: &Metrics,
+    ) -> Result<Bytes, FormatError> {
+        let key = (scene.id, page);
+        if let Some(frame) = self.get(key) {
+            Metrics::add(&metrics.cache_hits, 1);
+            return Ok(frame);
+        }
+        Metrics::add(&metrics.cache_misses, 1);
+        self.read_through(scene, page, metrics)
+    }
+
+    /// Reads, verifies and caches a page that was not found in the cache.
+    pub fn read_through(
+        &self,
+        scene: &ServedScene,
+        page: u32,
+        metrics: &Metrics,
+    ) -> Result<Bytes, FormatError> {
+        let frame = read_verified(scene, page).inspect_err(|_| {
+            Metrics::add(&metrics.corrupt_pages, 1);
+        })?;
+        self.insert((scene.id, page), frame.clone(), metrics);
+        Ok(frame)
+    }
+
+    /// [`PageCache::load`] for async callers: hits answer at once, misses
+    /// read on a blocking thread so a slow disk never stalls the runtime.
+    pub async fn fetch(
+        self: &std::sync::Arc<Self>,
+        scene: &std::sync::Arc<ServedScene>,
+        page: u32,
+        metrics: &std::sync::Arc<Metrics>,
+    ) -> Result<Bytes, FormatError> {
+        if let Some(frame) = self.get((scene.id, page)) {
+            Metrics::add(&metrics.cache_hits, 1);
+            return Ok(frame);
+        }
+        Metrics::add(&metrics.cache_misses, 1);
+        let (cache, scene2, metrics2) = (self.clone(), scene.clone(), metrics.clone());
+        match tokio::task::spawn_blocking(move || cache.read_through(&scene2, page, &metrics2))
+            .await
+        {
+            Ok(result) => result,
+            // The blocking pool is gone (runtime shutting down): read here.
+            Err(_) => self.read_through(scene, page, metrics),
+        }
+    }
+}
+
+/// The page's stored bytes as a frame, after checking its checksum, header
+/// and agreement with the directory.
+fn read_verified(scene: &ServedScene, page: u32) -> Result<Bytes, FormatError> {
+    scene.file.verify_page(page as usize)?;
+    let bytes = scene
+        .file
+        .page_bytes(page as usize)
+        .ok_or(FormatError::BadPage {
+            page,
+            message: "outside the file".into(),
+        })?;
+    Ok(Bytes::from(encode_page_frame(bytes)))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn evicts_least_recently_used_past_the_byte_bound() {
+        let m = Metrics::default();
+        let cache = PageCache::new(100, &m);
+        cache.insert((0, 1), Bytes::from(vec![0u8; 40]), &m);
+        cache.insert((0, 2), Bytes::from(vec![0u8; 40]), &m);
+        assert!(cache.get((0, 1)).is_some(), "touch page 1");
+        cache.insert((1, 1), Bytes::from(vec![0u8; 40]), &m);
+        assert!(cache.contains((0, 1)));
+        assert!(!cache.contains((0, 2)), "page 2 was least recently used");
+        assert!(cache.contains((1, 1)));
+        assert_eq!(m.snapshot().cache_bytes, 80);
+        cache.insert((2, 0), Bytes::from(vec![0u8; 101]), &m);
+        assert!(!cache.contains((2, 0)), "larger than the cache");
+        assert_eq!(m.snapshot().cache_pages, 2);
+    }
+}

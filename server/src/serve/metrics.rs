@@ -1,0 +1,305 @@
+//! The memory server's counters and their Prometheus text rendering.
+//!
+//! Plain atomics, updated on the hot path without locks, and one histogram
+//! with fixed buckets for request latency (the time from a page becoming
+//! wanted to its frame being handed to the socket). `/metrics` renders them
+//! by hand in the Prometheus text exposition format; [`Metrics::snapshot`]
+//! gives the same numbers as a struct for in-process callers and reports.
+
+use std::fmt::Write as _;
+use std::sync::atomic::{AtomicI64, AtomicU64, Ordering};
+use std::time::Duration;
+
+use serde::Serialize;
+
+/// Upper bounds of the latency buckets, in seconds (`+Inf` is implicit).
+pub const LATENCY_BUCKETS_S: [f64; 16] = [
+    0.0001, 0.00025, 0.0005, 0.001, 0.0025, 0.005, 0.01, 0.025, 0.05, 0.1, 0.25, 0.5, 1.0, 2.5,
+    5.0, 10.0,
+];
+
+/// Every counter the server keeps; shared by all connections.
+#[derive(Debug, Default)]
+pub struct Metrics {
+    pub pages_served: AtomicU64,
+    pub bytes_served: AtomicU64,
+    pub pages_pushed: AtomicU64,
+    pub cache_hits: AtomicU64,
+    pub cache_misses: AtomicU64,
+    pub cache_bytes: AtomicU64,
+    pub cache_pages: AtomicU64,
+    pub cache_capacity_bytes: AtomicU64,
+    pub prefetch_loads: AtomicU64,
+    pub prefetch_dropped: AtomicU64,
+    pub corrupt_pages: AtomicU64,
+    pub malformed_frames: AtomicU64,
+    pub connections_total: AtomicU64,
+    /// Signed so a decrement racing an increment can never wrap.
+    pub connected_clients: AtomicI64,
+    /// Pages wanted and not yet sent, over all connections.
+    pub queue_depth: AtomicI64,
+    pub pages_cancelled: AtomicU64,
+    pub scenes: AtomicU64,
+    pub latency: Histogram,
+}
+
+/// A fixed-bucket histogram of durations (non-cumulative counts per bucket;
+/// rendering accumulates).
+#[derive(Debug, Default)]
+pub struct Histogram {
+    buckets: [AtomicU64; LATENCY_BUCKETS_S.len() + 1],
+    sum_us: AtomicU64,
+    count: AtomicU64,
+}
+
+impl Histogram {
+    pub fn observe(&self, d: Duration) {
+        let s = d.as_secs_f64();
+        let i = LATENCY_BUCKETS_S
+            .iter()
+            .position(|&b| s <= b)
+            .unwrap_or(LATENCY_BUCKETS_S.len());
+        self.buckets[i].fetch_add(1, Ordering::Relaxed);
+        let us = u64::try_from(d.as_micros()).unwrap_or(u64::MAX);
+        self.sum_us.fetch_add(us, Ordering::Relaxed);
+        self.count.fetch_add(1, Ordering::Relaxed);
+    }
+
+    /// Cumulative counts per bucket (the last is `+Inf`), sum in seconds, count.
+    pub fn cumulative(&self) -> (Vec<u64>, f64, u64) {
+        let mut acc = 0;
+        let counts = self
+            .buckets
+            .iter()
+            .map(|b| {
+                acc += b.load(Ordering::Relaxed);
+                acc
+            })
+            .collect();
+        (
+            counts,
+            self.sum_us.load(Ordering::Relaxed) as f64 * 1e-6,
+            self.count.load(Ordering::Relaxed),
+        )
+    }
+}
+
+/// The counters at one moment, for reports and tests.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct MetricsSnapshot {
+    pub pages_served: u64,
+    pub bytes_served: u64,
+    pub pages_pushed: u64,
+    pub cache_hits: u64,
+    pub cache_misses: u64,
+    pub cache_bytes: u64,
+    pub cache_pages: u64,
+    pub cache_capacity_bytes: u64,
+    pub prefetch_loads: u64,
+    pub prefetch_dropped: u64,
+    pub corrupt_pages: u64,
+    pub malformed_frames: u64,
+    pub connections_total: u64,
+    pub connected_clients: u64,
+    pub queue_depth: u64,
+    pub pages_cancelled: u64,
+    pub scenes: u64,
+    pub latency_count: u64,
+    pub latency_sum_s: f64,
+}
+
+fn get(a: &AtomicU64) -> u64 {
+    a.load(Ordering::Relaxed)
+}
+
+fn gauge(a: &AtomicI64) -> u64 {
+    u64::try_from(a.load(Ordering::Relaxed)).unwrap_or(0)
+}
+
+impl Metrics {
+    pub fn add(a: &AtomicU64, n: u64) {
+        a.fetch_add(n, Ordering::Relaxed);
+    }
+
+    pub fn snapshot(&self) -> MetricsSnapshot {
+        let (_, latency_sum_s, latency_count) = self.latency.cumulative();
+        MetricsSnapshot {
+            pages_served: get(&self.pages_served),
+            bytes_served: get(&self.bytes_served),
+            pages_pushed: get(&self.pages_pushed),
+            cache_hits: get(&self.cache_hits),
+            cache_misses: get(&self.cache_misses),
+            cache_bytes: get(&self.cache_bytes),
+            cache_pages: get(&self.cache_pages),
+            cache_capacity_bytes: get(&self.cache_capacity_bytes),
+            prefetch_loads: get(&self.prefetch_loads),
+            prefetch_dropped: get(&self.prefetch_dropped),
+            corrupt_pages: get(&self.corrupt_pages),
+            malformed_frames: get(&self.malformed_frames),
+            connections_total: get(&self.connections_total),
+            connected_clients: gauge(&self.connected_clients),
+            queue_depth: gauge(&self.queue_depth),
+            pages_cancelled: get(&self.pages_cancelled),
+            scenes: get(&self.scenes),
+            latency_count,
+            latency_sum_s,
+        }
+    }
+
+    /// The Prometheus text exposition (format 0.0.4).
+    pub fn render(&self) -> String {
+        let s = self.snapshot();
+        let mut out = String::with_capacity(4096);
+        let mut metric = |name: &str, kind: &str, help: &str, value: u64| {
+            let _ = write!(
+                out,
+                "# HELP {name} {help}\n# TYPE {name} {kind}\n{name} {value}\n"
+            );
+        };
+        metric(
+            "farfield_pages_served_total",
+            "counter",
+            "Page frames sent to clients (requested, page 0 and pushed).",
+            s.pages_served,
+        );
+        metric(
+            "farfield_bytes_served_total",
+            "counter",
+            "Page bytes sent to clients.",
+            s.bytes_served,
+        );
+        metric(
+            "farfield_pages_pushed_total",
+            "counter",
+            "Pages pushed to clients that allowed pushes, unrequested.",
+            s.pages_pushed,
+        );
+        metric(
+            "farfield_page_cache_hits_total",
+            "counter",
+            "Page lookups answered from the page cache.",
+            s.cache_hits,
+        );
+        metric(
+            "farfield_page_cache_misses_total",
+            "counter",
+            "Page lookups that read the memory-mapped file.",
+            s.cache_misses,
+        );
+        metric(
+            "farfield_page_cache_bytes",
+            "gauge",
+            "Bytes held in the page cache.",
+            s.cache_bytes,
+        );
+        metric(
+            "farfield_page_cache_pages",
+            "gauge",
+            "Pages held in the page cache.",
+            s.cache_pages,
+        );
+        metric(
+            "farfield_page_cache_capacity_bytes",
+            "gauge",
+            "Byte bound of the page cache.",
+            s.cache_capacity_bytes,
+        );
+        metric(
+            "farfield_prefetch_loads_total",
+            "counter",
+            "Child pages read ahead into the cache.",
+            s.prefetch_loads,
+        );
+        metric(
+            "farfield_prefetch_dropped_total",
+            "counter",
+            "Read-ahead hints dropped because the prefetch queue was full.",
+            s.prefetch_dropped,
+        );
+        metric(
+            "farfield_corrupt_pages_total",
+            "counter",
+            "Page loads that failed verification (reported, never sent).",
+            s.corrupt_pages,
+        );
+        metric(
+            "farfield_malformed_frames_total",
+            "counter",
+            "Client frames that broke the protocol and closed their connection.",
+            s.malformed_frames,
+        );
+        metric(
+            "farfield_connections_total",
+            "counter",
+            "Websocket sessions accepted.",
+            s.connections_total,
+        );
+        metric(
+            "farfield_connected_clients",
+            "gauge",
+            "Websocket sessions open now.",
+            s.connected_clients,
+        );
+        metric(
+            "farfield_queue_depth",
+            "gauge",
+            "Pages requested and not yet sent, over all connections.",
+            s.queue_depth,
+        );
+        metric(
+            "farfield_pages_cancelled_total",
+            "counter",
+            "Queued pages cancelled by clients before being sent.",
+            s.pages_cancelled,
+        );
+        metric("farfield_scenes", "gauge", "Scenes being served.", s.scenes);
+        let (counts, sum, count) = self.latency.cumulative();
+        let name = "farfield_request_latency_seconds";
+        let _ = writeln!(
+            out,
+            "# HELP {name} Time from a page becoming wanted to its frame being sent."
+        );
+        let _ = writeln!(out, "# TYPE {name} histogram");
+        for (bound, c) in LATENCY_BUCKETS_S.iter().zip(&counts) {
+            let _ = writeln!(out, "{name}_bucket{{le=\"{bound}\"}} {c}");
+        }
+        let _ = writeln!(
+            out,
+            "{name}_bucket{{le=\"+Inf\"}} {}",
+            counts.last().copied().unwrap_or(0)
+        );
+        let _ = writeln!(out, "{name}_sum {sum}");
+        let _ = writeln!(out, "{name}_count {count}");
+        out
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn histogram_is_cumulative_and_rendered() {
+        let m = Metrics::default();
+        m.latency.observe(Duration::from_micros(50));
+        m.latency.observe(Duration::from_millis(3));
+        m.latency.observe(Duration::from_secs(100));
+        let (counts, sum, count) = m.latency.cumulative();
+        assert_eq!(count, 3);
+        assert_eq!(counts[0], 1);
+        assert_eq!(counts[5], 2, "0.005 bucket holds 50 us and 3 ms");
+        assert_eq!(*counts.last().unwrap(), 3);
+        assert!((sum - 100.00305).abs() < 1e-6);
+        let text = m.render();
+        assert!(text.contains("farfield_request_latency_seconds_bucket{le=\"+Inf\"} 3"));
+        assert!(text.contains("farfield_request_latency_seconds_count 3"));
+        assert!(text.contains("# TYPE farfield_queue_depth gauge"));
+    }
+
+    #[test]
+    fn negative_gauges_render_as_zero() {
+        let m = Metrics::default();
+        m.queue_depth.fetch_sub(1, Ordering::Relaxed);
+        assert_eq!(m.snapshot().queue_depth, 0);
+    }
+}

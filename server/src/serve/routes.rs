@@ -1,0 +1,93 @@
+//! The HTTP surface: scene listing, one scene, health, metrics, and the
+//! websocket upgrade that starts a [`session`](super::session).
+//!
+//! Unknown scenes and paths answer 404 with a JSON `{"error": ...}` body, so
+//! scripts and the client can print the reason.
+
+use std::net::SocketAddr;
+use std::sync::Arc;
+
+use axum::Json;
+use axum::Router;
+use axum::extract::ws::rejection::WebSocketUpgradeRejection;
+use axum::extract::ws::{WebSocket, WebSocketUpgrade};
+use axum::extract::{ConnectInfo, Path, State};
+use axum::http::{StatusCode, header};
+use axum::response::{IntoResponse, Response};
+use axum::routing::get;
+use farfield_protocol::codec::MAX_CONTROL_BYTES;
+use serde_json::{Value, json};
+
+use super::AppState;
+use super::session;
+
+/// Largest websocket message a client may send: one control message plus
+/// its kind byte, with room to spare. Anything larger is refused by the
+/// websocket layer before it is buffered.
+const MAX_CLIENT_MESSAGE: usize = 2 * MAX_CONTROL_BYTES;
+
+pub(crate) fn router(state: Arc<AppState>) -> Router {
+    Router::new()
+        .route("/healthz", get(healthz))
+        .route("/metrics", get(metrics))
+        .route("/scenes", get(list))
+        .route("/scenes/{name}", get(one))
+        .route("/scenes/{name}/stream", get(stream))
+        .fallback(fallback)
+        .with_state(state)
+}
+
+fn not_found(message: String) -> Response {
+    (StatusCode::NOT_FOUND, Json(json!({ "error": message }))).into_response()
+}
+
+fn unknown_scene(name: &str) -> Response {
+    not_found(format!("no scene named {name:?}"))
+}
+
+async fn healthz() -> &'static str {
+    "ok"
+}
+
+async fn metrics(State(app): State<Arc<AppState>>) -> Response {
+    (
+        [(header::CONTENT_TYPE, "text/plain; version=0.0.4")],
+        app.metrics.render(),
+    )
+        .into_response()
+}
+
+async fn list(State(app): State<Arc<AppState>>) -> Json<Value> {
+    Json(Value::Array(
+        app.catalog.iter().map(|s| s.summary()).collect(),
+    ))
+}
+
+async fn one(State(app): State<Arc<AppState>>, Path(name): Path<String>) -> Response {
+    match app.catalog.get(&name) {
+        Some(scene) => Json(scene.details()).into_response(),
+        None => unknown_scene(&name),
+    }
+}
+
+async fn stream(
+    State(app): State<Arc<AppState>>,
+    Path(name): Path<String>,
+    ConnectInfo(peer): ConnectInfo<SocketAddr>,
+    ws: Result<WebSocketUpgrade, WebSocketUpgradeRejection>,
+) -> Response {
+    let Some(scene) = app.catalog.get(&name).cloned() else {
+        return unknown_scene(&name);
+    };
+    let ws = match ws {
+        Ok(ws) => ws,
+        Err(rejection) => return rejection.into_response(),
+    };
+    ws.max_message_size(MAX_CLIENT_MESSAGE)
+        .max_frame_size(MAX_CLIENT_MESSAGE)
+        .on_upgrade(move |socket: WebSocket| session::run(socket, scene, app, peer))
+}
+
+async fn fallback() -> Response {
+    not_found("no such endpoint (try /scenes, /healthz or /metrics)".into())
+}

@@ -1,0 +1,610 @@
+//! One websocket session, exactly as `protocol/src/messages.rs` describes:
+//! the client's hello (or a fatal error for another protocol version), the
+//! server's hello, the scene header and page 0, then requests, cancels and
+//! acknowledgements answered by pages in priority order.
+//!
+//! The socket is split: a reader applies client messages to the shared
+//! [`Schedule`] and wakes the writer, and the writer sends whatever the
+//! schedule allows. Both run concurrently in the session's task, so a
+//! client that reads slowly (the writer waits on the socket) still has its
+//! cancels and acknowledgements read at once, and nothing one session does
+//! waits on another. A frame that breaks the protocol ends only its own
+//! session, with a close frame that says why.
+
+use std::collections::VecDeque;
+use std::net::SocketAddr;
+use std::sync::atomic::Ordering;
+use std::sync::{Arc, Mutex, MutexGuard};
+use std::time::{Duration, Instant};
+
+use axum::body::Bytes;
+use axum::extract::ws::{CloseFrame, Message, WebSocket};
+use farfield_protocol::codec::{decode_control, encode_control, frame_kind};
+use farfield_protocol::messages::{ClientMessage, FrameKind, PROTOCOL_VERSION, ServerMessage};
+use futures_util::stream::{SplitSink, SplitStream};
+use futures_util::{SinkExt, StreamExt};
+use tokio::sync::{Notify, watch};
+
+use super::AppState;
+use super::catalog::ServedScene;
+use super::metrics::Metrics;
+use super::schedule::{PAGE_ZERO_PRIORITY, Schedule};
+
+/// How long a client has to say hello.
+pub const HELLO_TIMEOUT: Duration = Duration::from_secs(10);
+/// How long a closing session waits for its last frames to go out.
+const CLOSE_GRACE: Duration = Duration::from_secs(2);
+
+/// Close codes (RFC 6455, section 7.4.1).
+const CLOSE_GOING_AWAY: u16 = 1001;
+const CLOSE_PROTOCOL: u16 = 1002;
+const CLOSE_UNSUPPORTED: u16 = 1003;
+
+type Sink = SplitSink<WebSocket, Message>;
+type Stream = SplitStream<WebSocket>;
+
+/// Why a session ended (for the log and the close frame).
+#[derive(Debug, Clone, PartialEq)]
+enum End {
+    /// The client closed, or the connection dropped.
+    ClientGone,
+    /// The client broke the protocol; close with this code and reason.
+    Malformed(u16, String),
+    /// A fatal error already sent; close with this reason.
+    Fatal(String),
+    ShuttingDown,
+}
+
+/// Counts a session as connected for as long as it lives.
+struct Connected<'a>(&'a AppState);
+
+impl<'a> Connected<'a> {
+    fn new(app: &'a AppState) -> Self {
+        Metrics::add(&app.metrics.connections_total, 1);
+        app.metrics.connected_clients.fetch_add(1, Ordering::SeqCst);
+        Self(app)
+    }
+}
+
+impl Drop for Connected<'_> {
+    fn drop(&mut self) {
+        self.0
+            .metrics
+            .connected_clients
+            .fetch_sub(1, Ordering::SeqCst);
+        self.0.session_ended.notify_waiters();
+    }
+}
+
+/// What the reader and the writer share.
+#[derive(Debug)]
+struct Shared {
+    state: Mutex<State>,
+    wake: Notify,
+}
+
+#[derive(Debug)]
+struct State {
+    schedule: Schedule,
+    /// Control frames to send before any page.
+    outbox: VecDeque<Bytes>,
+    /// Set by the reader when the session must end.
+    ending: Option<End>,
+    stats: Stats,
+}
+
+#[derive(Debug, Default, Clone, Copy)]
+struct Stats {
+    pages: u64,
+    bytes: u64,
+    pushed: u64,
+    corrupt: u64,
+    requested: u64,
+    cancelled: u64,
+}
+
+impl Shared {
+    fn lock(&self) -> MutexGuard<'_, State> {
+        self.state.lock().unwrap_or_else(|e| e.into_inner())
+    }
+
+    fn end(&self, end: End) {
+        self.lock().ending.get_or_insert(end);
+        self.wake.notify_one();
+    }
+}
+
+fn control(message: &ServerMessage) -> Message {
+    Message::Binary(Bytes::from(encode_control(message)))
+}
+
+fn error(message: String, fatal: bool) -> ServerMessage {
+    ServerMessage::Error { message, fatal }
+}
+
+/// A close frame's reason may hold at most 123 bytes.
+fn close_frame(code: u16, reason: &str) -> Message {
+    let mut end = reason.len().min(123);
+    while !reason.is_char_boundary(end) {
+        end -= 1;
+    }
+    Message::Close(Some(CloseFrame {
+        code,
+        reason: reason[..end].into(),
+    }))
+}
+
+/// Sends, giving up after [`CLOSE_GRACE`]: used where the session ends
+/// anyway and a client that does not read must not hold it open.
+async fn send_briefly(sink: &mut Sink, message: Message) {
+    let _ = tokio::time::timeout(CLOSE_GRACE, sink.send(message)).await;
+}
+
+/// A client frame, sorted.
+enum Frame {
+    Binary(Bytes),
+    Bad(u16, String),
+    Gone,
+}
+
+async fn next_frame(stream: &mut Stream) -> Frame {
+    loop {
+        match stream.next().await {
+            Some(Ok(Message::Binary(b))) => return Frame::Binary(b),
+            Some(Ok(Message::Ping(_) | Message::Pong(_))) => continue,
+            Some(Ok(Message::Text(_))) => {
+                return Frame::Bad(
+                    CLOSE_UNSUPPORTED,
+                    "text frame: this protocol speaks binary frames only".into(),
+                );
+            }
+            Some(Ok(Message::Close(_))) | None => return Frame::Gone,
+            Some(Err(e)) => {
+                tracing::debug!("websocket read failed: {e}");
+                return Frame::Gone;
+            }
+        }
+    }
+}
+
+/// Decodes a client control frame, or says why it is not one.
+fn decode(frame: &[u8]) -> Result<ClientMessage, String> {
+    match frame_kind(frame) {
+        Ok((FrameKind::Page, _)) => {
+            Err("page frame from a client: clients send control messages only".into())
+        }
+        Ok((FrameKind::Control, _)) => {
+            decode_control(frame).map_err(|e| format!("undecodable control message: {e}"))
+        }
+        Err(e) => Err(format!("bad frame: {e}")),
+    }
+}
+
+async fn shutdown_signalled(rx: &mut watch::Receiver<bool>) {
+    // A dropped sender means the server is gone: stop too.
+    let _ = rx.wait_for(|&stop| stop).await;
+}
+
+/// Runs one session to its end.
+pub(crate) async fn run(
+    socket: WebSocket,
+    scene: Arc<ServedScene>,
+    app: Arc<AppState>,
+    peer: SocketAddr,
+) {
+    let _connected = Connected::new(&app);
+    let started = Instant::now();
+    let (mut sink, mut stream) = socket.split();
+    let mut shutdown = app.shutdown.clone();
+
+    let first = tokio::select! {
+        r = tokio::time::timeout(HELLO_TIMEOUT, next_frame(&mut stream)) => r,
+        () = shutdown_signalled(&mut shutdown) => {
+            send_briefly(&mut sink, close_frame(CLOSE_GOING_AWAY, "server shutting down")).await;
+            return;
+        }
+    };
+    let (window, allow_push) = match hello(first, &app) {
+        Ok(h) => h,
+        Err(end) => {
+            finish_early(&mut sink, &end).await;
+            tracing::info!(%peer, scene = %scene.name, "client refused: {}", describe(&end));
+            return;
+        }
+    };
+    tracing::info!(%peer, scene = %scene.name, window, allow_push, "client connected");
+
+    let shared = Shared {
+        state: Mutex::new(State {
+            schedule: Schedule::new(window, allow_push),
+            outbox: VecDeque::from([
+                Bytes::from(encode_control(&ServerMessage::Hello {
+                    protocol_version: PROTOCOL_VERSION,
+                    server: format!("farfield-server {}", env!("CARGO_PKG_VERSION")),
+                })),
+                Bytes::from(encode_control(&ServerMessage::Scene {
+                    name: scene.name.clone(),
+                    header: scene.file.header_bytes().to_vec(),
+                })),
+            ]),
+            ending: None,
+            stats: Stats::default(),
+        }),
+        wake: Notify::new(),
+    };
+    // Page 0 goes ahead of anything the client can ask for.
+    if scene.page_count() > 0 {
+        shared
+            .lock()
+            .schedule
+            .request_raw(0, PAGE_ZERO_PRIORITY, Instant::now());
+        app.metrics.queue_depth.fetch_add(1, Ordering::Relaxed);
+        app.prefetch.hint(&scene, scene.child_pages(0));
+    }
+
+    let reader = read_loop(&mut stream, &shared, &scene, &app);
+    let writer = write_loop(&mut sink, &shared, &scene, &app, shutdown);
+    tokio::pin!(reader, writer);
+    let end = tokio::select! {
+        end = &mut writer => end,
+        end = &mut reader => {
+            shared.end(end.clone());
+            // The writer sends the close frame (or flushes the reply to the
+            // client's close) and stops.
+            match tokio::time::timeout(CLOSE_GRACE * 2, &mut writer).await {
+                Ok(end) => end,
+                Err(_) => end,
+            }
+        }
+    };
+
+    let state = shared.lock();
+    let left = state.schedule.queued() as i64;
+    app.metrics.queue_depth.fetch_sub(left, Ordering::Relaxed);
+    let s = state.stats;
+    tracing::info!(
+        %peer,
+        scene = %scene.name,
+        pages = s.pages,
+        bytes = s.bytes,
+        pushed = s.pushed,
+        requested = s.requested,
+        cancelled = s.cancelled,
+        corrupt = s.corrupt,
+        seconds = started.elapsed().as_secs_f64(),
+        "client disconnected: {}",
+        describe(&end)
+    );
+}
+
+fn describe(end: &End) -> String {
+    match end {
+        End::ClientGone => "closed by the client".into(),
+        End::Malformed(_, reason) => format!("malformed frame: {reason}"),
+        End::Fatal(reason) => reason.clone(),
+        End::ShuttingDown => "server shutting down".into(),
+    }
+}
+
+/// Checks the first frame; gives the window and push permission, or how the
+/// session must end.
+fn hello(
+    first: Result<Frame, tokio::time::error::Elapsed>,
+    app: &AppState,
+) -> Result<(u64, bool), End> {
+    let frame = match first {
+        Ok(Frame::Binary(b)) => b,
+        Ok(Frame::Gone) => return Err(End::ClientGone),
+        Ok(Frame::Bad(code, reason)) => {
+            Metrics::add(&app.metrics.malformed_frames, 1);
+            return Err(End::Malformed(code, reason));
+        }
+        Err(_) => {
+            return Err(End::Fatal(format!(
+                "no Hello within {} s",
+                HELLO_TIMEOUT.as_secs()
+            )));
+        }
+    };
+    match decode(&frame) {
+        Ok(ClientMessage::Hello {
+            protocol_version,
+            max_in_flight_bytes,
+            allow_push,
+        }) => {
+            if protocol_version == PROTOCOL_VERSION {
+                Ok((max_in_flight_bytes, allow_push))
+            } else {
+                Err(End::Fatal(format!(
+                    "protocol version mismatch: the client speaks version {protocol_version}, \
+                     this server speaks version {PROTOCOL_VERSION}"
+                )))
+            }
+        }
+        Ok(other) => {
+            Metrics::add(&app.metrics.malformed_frames, 1);
+            Err(End::Malformed(
+                CLOSE_PROTOCOL,
+                format!("expected Hello first, got {}", message_name(&other)),
+            ))
+        }
+        Err(reason) => {
+            Metrics::add(&app.metrics.malformed_frames, 1);
+            Err(End::Malformed(CLOSE_PROTOCOL, reason))
+        }
+    }
+}
+
+fn message_name(m: &ClientMessage) -> &'static str {
+    match m {
+        ClientMessage::Hello { .. } => "Hello",
+        ClientMessage::Request { .. } => "Request",
+        ClientMessage::Cancel { .. } => "Cancel",
+        ClientMessage::Received { .. } => "Received",
+    }
+}
+
+/// Ends a session that never got past the hello.
+async fn finish_early(sink: &mut Sink, end: &End) {
+    match end {
+        End::ClientGone => {
+            let _ = tokio::time::timeout(CLOSE_GRACE, sink.close()).await;
+        }
+        End::Malformed(code, reason) => send_briefly(sink, close_frame(*code, reason)).await,
+        End::Fatal(reason) => {
+            send_briefly(sink, control(&error(reason.clone(), true))).await;
+            send_briefly(sink, close_frame(CLOSE_PROTOCOL, reason)).await;
+        }
+        End::ShuttingDown => {
+            send_briefly(sink, close_frame(CLOSE_GOING_AWAY, "server shutting down")).await;
+        }
+    }
+}
+
+/// Reads client frames until the client leaves or breaks the protocol.
+async fn read_loop(
+    stream: &mut Stream,
+    shared: &Shared,
+    scene: &Arc<ServedScene>,
+    app: &AppState,
+) -> End {
+    loop {
+        let frame = match next_frame(stream).await {
+            Frame::Binary(b) => b,
+            Frame::Gone => return End::ClientGone,
+            Frame::Bad(code, reason) => {
+                Metrics::add(&app.metrics.malformed_frames, 1);
+                return End::Malformed(code, reason);
+            }
+        };
+        let applied = decode(&frame).and_then(|m| apply(m, shared, scene, app));
+        if let Err(reason) = applied {
+            Metrics::add(&app.metrics.malformed_frames, 1);
+            return End::Malformed(CLOSE_PROTOCOL, reason);
+        }
+        shared.wake.notify_one();
+    }
+}
+
+/// Applies one client message to the schedule.
+fn apply(
+    message: ClientMessage,
+    shared: &Shared,
+    scene: &Arc<ServedScene>,
+    app: &AppState,
+) -> Result<(), String> {
+    let now = Instant::now();
+    let pages = scene.page_count();
+    match message {
+        ClientMessage::Hello { .. } => return Err("Hello sent twice".into()),
+        ClientMessage::Request { pages: wishes } => {
+            let mut out_of_range = Vec::new();
+            let mut added = 0i64;
+            let mut wanted = Vec::with_capacity(wishes.len());
+            {
+                let mut st = shared.lock();
+                for w in &wishes {
+                    if w.page >= pages {
+                        out_of_range.push(w.page);
+                        continue;
+                    }
+                    if st.schedule.request(w.page, w.priority, now) {
+                        added += 1;
+                    }
+                    wanted.push(w.page);
+                }
+                st.stats.requested += added as u64;
+                if !out_of_range.is_empty() {
+                    let shown: Vec<String> = out_of_range
+                        .iter()
+                        .take(16)
+                        .map(|p| p.to_string())
+                        .collect();
+                    let more = out_of_range.len().saturating_sub(16);
+                    let message = format!(
+                        "pages out of range (scene {:?} has {pages} pages): {}{}",
+                        scene.name,
+                        shown.join(", "),
+                        if more > 0 {
+                            format!(" and {more} more")
+                        } else {
+                            String::new()
+                        }
+                    );
+                    st.outbox
+                        .push_back(Bytes::from(encode_control(&error(message, false))));
+                }
+            }
+            app.metrics.queue_depth.fetch_add(added, Ordering::Relaxed);
+            for page in wanted {
+                app.prefetch.hint(scene, scene.child_pages(page));
+            }
+        }
+        ClientMessage::Cancel { pages } => {
+            let mut st = shared.lock();
+            let removed = pages.iter().filter(|&&p| st.schedule.cancel(p)).count() as u64;
+            st.stats.cancelled += removed;
+            drop(st);
+            Metrics::add(&app.metrics.pages_cancelled, removed);
+            app.metrics
+                .queue_depth
+                .fetch_sub(removed as i64, Ordering::Relaxed);
+        }
+        ClientMessage::Received { pages } => {
+            let mut st = shared.lock();
+            for p in pages {
+                st.schedule.received(p);
+            }
+        }
+    }
+    Ok(())
+}
+
+/// What the writer does next.
+enum Action {
+    Send(Bytes),
+    Page(super::schedule::NextPage),
+    End(End),
+    Wait,
+}
+
+fn next_action(shared: &Shared, scene: &ServedScene, shutting_down: bool) -> Action {
+    let mut st = shared.lock();
+    if shutting_down {
+        return Action::End(End::ShuttingDown);
+    }
+    if let Some(end) = st.ending.clone() {
+        return Action::End(end);
+    }
+    if let Some(frame) = st.outbox.pop_front() {
+        return Action::Send(frame);
+    }
+    match st.schedule.next(|p| scene.page_len(p).unwrap_or(0)) {
+        Some(next) => Action::Page(next),
+        None => Action::Wait,
+    }
+}
+
+/// Sends what the schedule allows until the session ends.
+async fn write_loop(
+    sink: &mut Sink,
+    shared: &Shared,
+    scene: &Arc<ServedScene>,
+    app: &Arc<AppState>,
+    mut shutdown: watch::Receiver<bool>,
+) -> End {
+    loop {
+        let shutting_down = *shutdown.borrow();
+        let frame = match next_action(shared, scene, shutting_down) {
+            Action::Wait => {
+                tokio::select! {
+                    () = shared.wake.notified() => {}
+                    () = shutdown_signalled(&mut shutdown) => {}
+                }
+                continue;
+            }
+            Action::End(end) => {
+                match &end {
+                    End::ClientGone => {
+                        // Flushes the close reply the websocket layer queued.
+                        let _ = tokio::time::timeout(CLOSE_GRACE, sink.close()).await;
+                    }
+                    End::Malformed(code, reason) => {
+                        send_briefly(sink, close_frame(*code, reason)).await;
+                    }
+                    End::Fatal(reason) => {
+                        send_briefly(sink, control(&error(reason.clone(), true))).await;
+                        send_briefly(sink, close_frame(CLOSE_PROTOCOL, reason)).await;
+                    }
+                    End::ShuttingDown => {
+                        send_briefly(sink, close_frame(CLOSE_GOING_AWAY, "server shutting down"))
+                            .await;
+                    }
+                }
+                return end;
+            }
+            Action::Send(bytes) => bytes,
+            Action::Page(next) => {
+                // Out of the queue now, even if this future is dropped below.
+                if !next.pushed {
+                    app.metrics.queue_depth.fetch_sub(1, Ordering::Relaxed);
+                }
+                let fetched = app.cache.fetch(scene, next.page, &app.metrics).await;
+                match fetched {
+                    Ok(frame) => {
+                        let page_bytes = frame.len().saturating_sub(1) as u64;
+                        let mut st = shared.lock();
+                        st.stats.pages += 1;
+                        st.stats.bytes += page_bytes;
+                        if next.pushed {
+                            st.stats.pushed += 1;
+                        } else {
+                            st.schedule
+                                .offer_push(scene.child_pages(next.page), next.priority);
+                        }
+                        drop(st);
+                        Metrics::add(&app.metrics.pages_served, 1);
+                        Metrics::add(&app.metrics.bytes_served, page_bytes);
+                        if next.pushed {
+                            Metrics::add(&app.metrics.pages_pushed, 1);
+                        }
+                        if let Some(since) = next.since {
+                            app.metrics.latency.observe(since.elapsed());
+                        }
+                        frame
+                    }
+                    Err(e) => {
+                        tracing::warn!(scene = %scene.name, page = next.page, "not sent: {e}");
+                        let mut st = shared.lock();
+                        st.schedule.unsend(next.page);
+                        st.stats.corrupt += 1;
+                        drop(st);
+                        Bytes::from(encode_control(&error(
+                            format!("scene {:?}: {e}", scene.name),
+                            false,
+                        )))
+                    }
+                }
+            }
+        };
+        let sent = tokio::select! {
+            r = sink.send(Message::Binary(frame)) => r,
+            () = shutdown_signalled(&mut shutdown) => {
+                // The client is not reading; it gets no goodbye.
+                return End::ShuttingDown;
+            }
+        };
+        if sent.is_err() {
+            return End::ClientGone;
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn close_reasons_are_cut_to_123_bytes_on_a_char_boundary() {
+        let long = "é".repeat(100);
+        let Message::Close(Some(frame)) = close_frame(CLOSE_PROTOCOL, &long) else {
+            panic!("not a close frame");
+        };
+        assert!(frame.reason.as_str().len() <= 123);
+        assert!(frame.reason.as_str().len() >= 121);
+    }
+
+    #[test]
+    fn frames_are_sorted_with_reasons() {
+        assert!(decode(&[]).unwrap_err().contains("empty"));
+        assert!(decode(&[7]).unwrap_err().contains("unknown frame kind 7"));
+        assert!(decode(&[1, 0, 0]).unwrap_err().contains("page frame"));
+        assert!(decode(&[0, 255, 255]).unwrap_err().contains("undecodable"));
+        let hello = encode_control(&ClientMessage::Hello {
+            protocol_version: 1,
+            max_in_flight_bytes: 1,
+            allow_push: false,
+        });
+        assert!(matches!(decode(&hello), Ok(ClientMessage::Hello { .. })));
+    }
+}

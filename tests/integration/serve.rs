@@ -1,0 +1,710 @@
+//! The memory server end to end: a real server on a loopback port, in
+//! process, serving small generated scenes; HTTP through a raw TCP GET and
+//! websocket sessions through tokio-tungstenite, speaking the protocol byte
+//! for byte. Every wait is bounded, so a broken server fails a test instead
+//! of hanging it.
+
+use std::collections::HashSet;
+use std::net::SocketAddr;
+use std::path::{Path, PathBuf};
+use std::sync::OnceLock;
+use std::time::Duration;
+
+use farfield_protocol::codec::{decode_control, encode_control, encode_page_frame, frame_kind};
+use farfield_protocol::file::FileHeader;
+use farfield_protocol::messages::{
+    ClientMessage, FrameKind, PROTOCOL_VERSION, PageWish, ServerMessage,
+};
+use farfield_server::build::PagedFile;
+use farfield_server::import::{Params, load_input};
+use farfield_server::serve::{RunningServer, ServerConfig, start};
+use farfield_server::store::write_atomic;
+use farfield_tests::scratch;
+use futures_util::{SinkExt, StreamExt};
+use tokio::io::{AsyncReadExt, AsyncWriteExt};
+use tokio::net::TcpStream;
+use tokio_tungstenite::tungstenite::Message;
+use tokio_tungstenite::{MaybeTlsStream, WebSocketStream};
+
+use crate::build;
+
+/// Longest any single wait may take before the test fails.
+const T: Duration = Duration::from_secs(10);
+/// How long without a frame counts as "the server has nothing more to send".
+const QUIET: Duration = Duration::from_millis(400);
+/// The server's smallest in-flight window (clients asking for less get this).
+const MIN_WINDOW: u64 = 64 << 10;
+
+fn island() -> &'static PagedFile {
+    static FILE: OnceLock<PagedFile> = OnceLock::new();
+    FILE.get_or_init(|| {
+        let mut params = Params::default();
+        params.set("size", 64);
+        params.set("trees", 2);
+        build(load_input("gen:island", &params).expect("gen:island"))
+    })
+}
+
+fn tree() -> &'static PagedFile {
+    static FILE: OnceLock<PagedFile> = OnceLock::new();
+    FILE.get_or_init(|| build(load_input("gen:tree", &Params::default()).expect("gen:tree")))
+}
+
+/// A scratch folder with `island.ff`, `tree.ff`, a `.ff` that is not a
+/// scene (skipped) and a file of another extension (ignored).
+fn scenes_dir(name: &str) -> PathBuf {
+    let dir = scratch(name);
+    write_atomic(&dir.join("island.ff"), island()).expect("write island");
+    write_atomic(&dir.join("tree.ff"), tree()).expect("write tree");
+    std::fs::write(dir.join("broken.ff"), b"not a farfield file").expect("write broken");
+    std::fs::write(dir.join("notes.txt"), b"ignored").expect("write notes");
+    dir
+}
+
+async fn serve(dir: &Path) -> RunningServer {
+    let listen: SocketAddr = "127.0.0.1:0".parse().expect("address");
+    tokio::time::timeout(T, start(ServerConfig::new(dir, listen)))
+        .await
+        .expect("start timed out")
+        .expect("start")
+}
+
+/// `GET path` over a fresh connection; (status, body).
+async fn http_get(addr: SocketAddr, path: &str) -> (u16, String) {
+    tokio::time::timeout(T, async {
+        let mut s = TcpStream::connect(addr).await.expect("connect");
+        let request = format!("GET {path} HTTP/1.1\r\nHost: {addr}\r\nConnection: close\r\n\r\n");
+        s.write_all(request.as_bytes()).await.expect("send");
+        let mut buf = Vec::new();
+        s.read_to_end(&mut buf).await.expect("read");
+        let text = String::from_utf8(buf).expect("utf-8 response");
+        let (head, body) = text.split_once("\r\n\r\n").expect("header end");
+        let status = head
+            .split(' ')
+            .nth(1)
+            .and_then(|s| s.parse().ok())
+            .expect("status");
+        (status, body.to_owned())
+    })
+    .await
+    .expect("GET timed out")
+}
+
+/// One counter's value from the Prometheus text.
+fn metric(text: &str, name: &str) -> u64 {
+    text.lines()
+        .find_map(|l| l.strip_prefix(name)?.strip_prefix(' ')?.parse().ok())
+        .unwrap_or_else(|| panic!("{name} missing from /metrics:\n{text}"))
+}
+
+/// What a test client receives.
+#[derive(Debug)]
+enum In {
+    Control(ServerMessage),
+    Page(u32, Vec<u8>),
+    /// Close code and reason (none when the connection just ended).
+    Closed(Option<(u16, String)>),
+}
+
+struct Client {
+    ws: WebSocketStream<MaybeTlsStream<TcpStream>>,
+}
+
+impl Client {
+    async fn connect(addr: SocketAddr, scene: &str) -> Self {
+        let url = format!("ws://{addr}/scenes/{scene}/stream");
+        let (ws, _) = tokio::time::timeout(T, tokio_tungstenite::connect_async(url))
+            .await
+            .expect("connect timed out")
+            .expect("websocket connect");
+        Self { ws }
+    }
+
+    /// Connects, says hello, and checks the server's hello, the scene header
+    /// and page 0. Returns the client, the header bytes and page 0.
+    async fn open(
+        addr: SocketAddr,
+        scene: &str,
+        window: u64,
+        allow_push: bool,
+    ) -> (Self, Vec<u8>, Vec<u8>) {
+        let mut c = Self::connect(addr, scene).await;
+        c.send(&ClientMessage::Hello {
+            protocol_version: PROTOCOL_VERSION,
+            max_in_flight_bytes: window,
+            allow_push,
+        })
+        .await;
+        match c.recv().await {
+            In::Control(ServerMessage::Hello {
+                protocol_version, ..
+            }) => assert_eq!(protocol_version, PROTOCOL_VERSION),
+            other => panic!("expected Hello, got {other:?}"),
+        }
+        let header = match c.recv().await {
+            In::Control(ServerMessage::Scene { name, header }) => {
+                assert_eq!(name, scene);
+                header
+            }
+            other => panic!("expected Scene, got {other:?}"),
+        };
+        let page0 = match c.recv().await {
+            In::Page(0, bytes) => bytes,
+            other => panic!("expected page 0, got {other:?}"),
+        };
+        (c, header, page0)
+    }
+
+    async fn send(&mut self, m: &ClientMessage) {
+        self.send_raw(Message::binary(encode_control(m))).await;
+    }
+
+    async fn send_raw(&mut self, m: Message) {
+        tokio::time::timeout(T, self.ws.send(m))
+            .await
+            .expect("send timed out")
+            .expect("send");
+    }
+
+    /// The next message, failing the test after [`T`].
+    async fn recv(&mut self) -> In {
+        self.recv_within(T).await.expect("nothing received in time")
+    }
+
+    /// The next message, or `None` if nothing came within `wait`.
+    async fn recv_within(&mut self, wait: Duration) -> Option<In> {
+        loop {
+            let next = tokio::time::timeout(wait, self.ws.next()).await.ok()?;
+            return Some(match next {
+                Some(Ok(Message::Binary(b))) => match frame_kind(&b).expect("frame kind") {
+                    (FrameKind::Page, page) => {
+                        let index = u32::from_le_bytes(page[4..8].try_into().expect("index"));
+                        In::Page(index, page.to_vec())
+                    }
+                    (FrameKind::Control, _) => {
+                        In::Control(decode_control(&b).expect("server control message"))
+                    }
+                },
+                Some(Ok(Message::Close(frame))) => {
+                    In::Closed(frame.map(|f| (u16::from(f.code), f.reason.to_string())))
+                }
+                Some(Ok(Message::Ping(_) | Message::Pong(_) | Message::Frame(_))) => continue,
+                Some(Ok(Message::Text(t))) => panic!("server sent a text frame: {t}"),
+                Some(Err(_)) | None => In::Closed(None),
+            });
+        }
+    }
+
+    /// Every page that arrives until the server goes quiet; other messages
+    /// fail the test.
+    async fn pages_until_quiet(&mut self) -> Vec<(u32, Vec<u8>)> {
+        let mut pages = Vec::new();
+        while let Some(m) = self.recv_within(QUIET).await {
+            match m {
+                In::Page(i, bytes) => pages.push((i, bytes)),
+                other => panic!("expected pages, got {other:?}"),
+            }
+        }
+        pages
+    }
+
+    async fn ack(&mut self, pages: impl IntoIterator<Item = u32>) {
+        self.send(&ClientMessage::Received {
+            pages: pages.into_iter().collect(),
+        })
+        .await;
+    }
+
+    async fn request(&mut self, wishes: &[(u32, f32)]) {
+        self.send(&ClientMessage::Request {
+            pages: wishes
+                .iter()
+                .map(|&(page, priority)| PageWish { page, priority })
+                .collect(),
+        })
+        .await;
+    }
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn http_lists_scenes_health_metrics_and_404s() {
+    let dir = scenes_dir("serve-http");
+    let server = serve(&dir).await;
+    let addr = server.local_addr();
+    assert_eq!(server.scenes(), vec!["island", "tree"], "broken.ff skipped");
+
+    assert_eq!(http_get(addr, "/healthz").await, (200, "ok".into()));
+
+    let (status, body) = http_get(addr, "/scenes").await;
+    assert_eq!(status, 200);
+    let list: serde_json::Value = serde_json::from_str(&body).expect("JSON list");
+    let list = list.as_array().expect("array");
+    assert_eq!(list.len(), 2);
+    assert_eq!(list[0]["name"], "island");
+    assert_eq!(list[0]["kind"], "spheres");
+    assert_eq!(list[0]["nodes"], island().header.nodes);
+    assert_eq!(
+        list[0]["bytes"],
+        std::fs::metadata(dir.join("island.ff")).unwrap().len()
+    );
+    assert_eq!(list[0]["bounds_min"][0], island().header.bounds_min.x);
+    assert_eq!(list[1]["name"], "tree");
+
+    let (status, body) = http_get(addr, "/scenes/tree").await;
+    assert_eq!(status, 200);
+    let one: serde_json::Value = serde_json::from_str(&body).expect("JSON object");
+    assert_eq!(one["pages"], tree().header.pages.len());
+    assert_eq!(one["attributes"]["color"], tree().header.attributes.color);
+
+    for path in ["/scenes/nope", "/scenes/nope/stream", "/nowhere"] {
+        let (status, body) = http_get(addr, path).await;
+        assert_eq!(status, 404, "{path}");
+        let err: serde_json::Value = serde_json::from_str(&body).expect("JSON error");
+        assert!(err["error"].is_string(), "{path}: {body}");
+    }
+
+    let (status, text) = http_get(addr, "/metrics").await;
+    assert_eq!(status, 200);
+    for name in [
+        "farfield_pages_served_total",
+        "farfield_bytes_served_total",
+        "farfield_page_cache_hits_total",
+        "farfield_page_cache_misses_total",
+        "farfield_page_cache_bytes",
+        "farfield_queue_depth",
+        "farfield_connected_clients",
+        "farfield_pages_pushed_total",
+        "farfield_malformed_frames_total",
+        "farfield_request_latency_seconds_count",
+    ] {
+        metric(&text, name);
+    }
+    assert!(text.contains("farfield_request_latency_seconds_bucket{le=\"+Inf\"} 0"));
+    server.shutdown().await.expect("shutdown");
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn pages_arrive_in_priority_order_with_the_stored_bytes() {
+    let dir = scenes_dir("serve-order");
+    let server = serve(&dir).await;
+    let file = island();
+    let n = file.header.pages.len() as u32;
+    assert!(n >= 8, "test scene needs pages, has {n}");
+
+    let (mut c, header, page0) = Client::open(server.local_addr(), "island", 16 << 20, false).await;
+    let header_len = FileHeader::encoded_len(file.header.pages.len());
+    let on_disk = std::fs::read(dir.join("island.ff")).expect("read file");
+    assert_eq!(header, on_disk[..header_len], "header bytes as stored");
+    assert_eq!(FileHeader::decode(&header).expect("decodes"), file.header);
+    assert_eq!(page0, file.pages[0]);
+
+    // Priorities in a scrambled order, then in the same request an update
+    // that ties page 2 with page 3 (page 3 was first) and one that moves
+    // page 1 to the front. One message is applied at once, so the order is
+    // exact.
+    let mut wishes: Vec<(u32, f32)> = (1..n).map(|p| (p, ((p * 7) % n) as f32)).collect();
+    wishes.push((2, wishes[2].1));
+    wishes.push((1, 1000.0));
+    c.request(&wishes).await;
+    let mut latest = std::collections::HashMap::new();
+    for (seq, &(page, priority)) in wishes.iter().enumerate() {
+        latest.insert(page, (priority, seq));
+    }
+    let mut want: Vec<(u32, (f32, usize))> = latest.into_iter().collect();
+    want.sort_by(|a, b| b.1.0.total_cmp(&a.1.0).then(a.1.1.cmp(&b.1.1)));
+    let want: Vec<u32> = want.into_iter().map(|(p, _)| p).collect();
+    assert_eq!(want[0], 1);
+
+    let got = c.pages_until_quiet().await;
+    let order: Vec<u32> = got.iter().map(|(p, _)| *p).collect();
+    assert_eq!(order, want, "priority order");
+    let at = |p: u32| order.iter().position(|&q| q == p).unwrap();
+    assert_eq!(at(3) + 1, at(2), "tie broken by arrival");
+    for (p, bytes) in &got {
+        assert_eq!(bytes, &file.pages[*p as usize], "page {p} bytes as stored");
+    }
+
+    // Asked again after it arrived (lost, say): sent again.
+    c.ack(0..n).await;
+    c.request(&[(3, 1.0)]).await;
+    match c.recv().await {
+        In::Page(3, bytes) => assert_eq!(bytes, file.pages[3]),
+        other => panic!("expected page 3 again, got {other:?}"),
+    }
+    assert!(c.pages_until_quiet().await.is_empty());
+
+    let m = server.metrics();
+    assert_eq!(m.pages_served, u64::from(n) + 1);
+    assert!(m.latency_count >= u64::from(n));
+    assert_eq!(m.queue_depth, 0);
+    assert!(m.cache_misses > 0);
+    server.shutdown().await.expect("shutdown");
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_client_that_never_acknowledges_gets_at_most_its_window() {
+    let dir = scenes_dir("serve-window");
+    let server = serve(&dir).await;
+    let file = island();
+    let n = file.header.pages.len() as u32;
+    let biggest = file.pages.iter().map(|p| p.len()).max().unwrap() as u64;
+    // Asking for 1 byte gets the smallest window the server allows.
+    let (mut c, _, page0) = Client::open(server.local_addr(), "island", 1, false).await;
+    c.request(&(1..n).map(|p| (p, 1.0)).collect::<Vec<_>>())
+        .await;
+    let got = c.pages_until_quiet().await;
+    let bytes: u64 = page0.len() as u64 + got.iter().map(|(_, b)| b.len() as u64).sum::<u64>();
+    assert!(
+        bytes >= MIN_WINDOW && bytes < MIN_WINDOW + biggest,
+        "{bytes} bytes in flight for a {MIN_WINDOW}-byte window (pages up to {biggest})"
+    );
+    assert!((got.len() as u32) < n - 1, "window held back some pages");
+    let queued = server.metrics().queue_depth;
+    assert_eq!(queued, u64::from(n - 1) - got.len() as u64);
+
+    // Acknowledging opens the window again.
+    c.ack(std::iter::once(0).chain(got.iter().map(|(p, _)| *p)))
+        .await;
+    assert!(!c.pages_until_quiet().await.is_empty());
+    server.shutdown().await.expect("shutdown");
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_cancelled_page_never_arrives() {
+    let dir = scenes_dir("serve-cancel");
+    let server = serve(&dir).await;
+    let n = island().header.pages.len() as u32;
+    let (mut c, _, _) = Client::open(server.local_addr(), "island", 1, false).await;
+    // Page n-1 has the lowest priority, so a full window cannot hold it yet.
+    let wishes: Vec<(u32, f32)> = (1..n).map(|p| (p, (n - p) as f32)).collect();
+    let last = n - 1;
+    c.request(&wishes).await;
+    let mut seen: HashSet<u32> = c
+        .pages_until_quiet()
+        .await
+        .iter()
+        .map(|(p, _)| *p)
+        .collect();
+    assert!(!seen.contains(&last));
+    c.send(&ClientMessage::Cancel {
+        pages: vec![last, 9999],
+    })
+    .await;
+    // Acknowledge as pages arrive until every other page is in.
+    c.ack(std::iter::once(0).chain(seen.iter().copied())).await;
+    while seen.len() < (n - 2) as usize {
+        match c.recv().await {
+            In::Page(p, _) => {
+                assert_ne!(p, last, "cancelled page sent");
+                assert!(seen.insert(p), "page {p} sent twice");
+                c.ack([p]).await;
+            }
+            other => panic!("expected a page, got {other:?}"),
+        }
+    }
+    assert!(
+        c.pages_until_quiet().await.is_empty(),
+        "nothing after the rest"
+    );
+    let m = server.metrics();
+    assert_eq!(m.pages_cancelled, 1);
+    assert_eq!(m.queue_depth, 0);
+    server.shutdown().await.expect("shutdown");
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn another_protocol_version_gets_a_fatal_error_naming_both() {
+    let dir = scenes_dir("serve-version");
+    let server = serve(&dir).await;
+    let mut c = Client::connect(server.local_addr(), "island").await;
+    c.send(&ClientMessage::Hello {
+        protocol_version: 99,
+        max_in_flight_bytes: 1 << 20,
+        allow_push: false,
+    })
+    .await;
+    match c.recv().await {
+        In::Control(ServerMessage::Error { message, fatal }) => {
+            assert!(fatal);
+            assert!(message.contains("99"), "{message}");
+            assert!(message.contains(&PROTOCOL_VERSION.to_string()), "{message}");
+        }
+        other => panic!("expected a fatal error, got {other:?}"),
+    }
+    assert!(matches!(c.recv().await, In::Closed(_)));
+    server.shutdown().await.expect("shutdown");
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn malformed_frames_close_only_their_own_connection() {
+    let dir = scenes_dir("serve-malformed");
+    let server = serve(&dir).await;
+    let addr = server.local_addr();
+    let (mut good, _, _) = Client::open(addr, "island", 1 << 20, false).await;
+
+    let page = island().pages[1].clone();
+    let hello = ClientMessage::Hello {
+        protocol_version: PROTOCOL_VERSION,
+        max_in_flight_bytes: 1,
+        allow_push: false,
+    };
+    let bad: Vec<(Message, &str)> = vec![
+        (Message::binary(vec![9u8, 1, 2]), "unknown frame kind 9"),
+        (Message::binary(Vec::<u8>::new()), "empty frame"),
+        (Message::text("hello?"), "text frame"),
+        (Message::binary(encode_page_frame(&page)), "page frame"),
+        (Message::binary(vec![0u8, 0xff, 0xff, 0xff]), "undecodable"),
+        (Message::binary(encode_control(&hello)), "Hello sent twice"),
+    ];
+    let count = bad.len() as u64;
+    for (frame, why) in bad {
+        let (mut c, _, _) = Client::open(addr, "island", 1 << 20, false).await;
+        c.send_raw(frame).await;
+        match c.recv().await {
+            In::Closed(Some((code, reason))) => {
+                assert!(code == 1002 || code == 1003, "close code {code}");
+                assert!(reason.contains(why), "reason {reason:?} should say {why:?}");
+            }
+            other => panic!("expected a close for {why}, got {other:?}"),
+        }
+    }
+    // A first message that is not a hello.
+    let mut c = Client::connect(addr, "island").await;
+    c.request(&[(1, 1.0)]).await;
+    match c.recv().await {
+        In::Closed(Some((_, reason))) => assert!(reason.contains("expected Hello"), "{reason}"),
+        other => panic!("expected a close, got {other:?}"),
+    }
+
+    // The first connection is unaffected.
+    good.request(&[(2, 1.0)]).await;
+    match good.recv().await {
+        In::Page(2, bytes) => assert_eq!(bytes, island().pages[2]),
+        other => panic!("expected page 2, got {other:?}"),
+    }
+    let (_, text) = http_get(addr, "/metrics").await;
+    assert_eq!(metric(&text, "farfield_malformed_frames_total"), count + 1);
+    assert_eq!(metric(&text, "farfield_connected_clients"), 1);
+    server.shutdown().await.expect("shutdown");
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn requests_out_of_range_are_reported_and_the_session_goes_on() {
+    let dir = scenes_dir("serve-range");
+    let server = serve(&dir).await;
+    let (mut c, _, _) = Client::open(server.local_addr(), "tree", 1 << 20, false).await;
+    c.request(&[(5000, 1.0), (1, 0.5)]).await;
+    let mut got_error = false;
+    let mut got_page = false;
+    while !(got_error && got_page) {
+        match c.recv().await {
+            In::Control(ServerMessage::Error { message, fatal }) => {
+                assert!(!fatal);
+                assert!(message.contains("5000"), "{message}");
+                got_error = true;
+            }
+            In::Page(1, bytes) => {
+                assert_eq!(bytes, tree().pages[1]);
+                got_page = true;
+            }
+            other => panic!("unexpected {other:?}"),
+        }
+    }
+    server.shutdown().await.expect("shutdown");
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn pushes_arrive_only_when_allowed_and_are_counted() {
+    let dir = scenes_dir("serve-push");
+    let server = serve(&dir).await;
+    let addr = server.local_addr();
+
+    let (mut quiet, _, _) = Client::open(addr, "island", 16 << 20, false).await;
+    assert!(
+        quiet.pages_until_quiet().await.is_empty(),
+        "nothing unasked without pushes"
+    );
+
+    // Children of page 0 are pushed once it is sent, unasked.
+    let (mut c, _, _) = Client::open(addr, "island", 16 << 20, true).await;
+    let pushed = c.pages_until_quiet().await;
+    assert!(!pushed.is_empty(), "children of page 0 pushed");
+    let pages: HashSet<u32> = pushed.iter().map(|(p, _)| *p).collect();
+    assert_eq!(pages.len(), pushed.len(), "no page pushed twice");
+    assert!(!pages.contains(&0));
+    for (p, bytes) in &pushed {
+        assert_eq!(bytes, &island().pages[*p as usize]);
+    }
+    // A pushed page still in flight is not sent again when asked for.
+    let some = *pages.iter().next().unwrap();
+    c.request(&[(some, 1.0)]).await;
+    assert!(c.pages_until_quiet().await.is_empty());
+
+    let (_, text) = http_get(addr, "/metrics").await;
+    assert_eq!(
+        metric(&text, "farfield_pages_pushed_total"),
+        pushed.len() as u64
+    );
+    // Read-ahead loaded those children into the cache (on its own threads).
+    let deadline = tokio::time::Instant::now() + T;
+    while server.metrics().prefetch_loads == 0 {
+        assert!(tokio::time::Instant::now() < deadline, "no read-ahead");
+        tokio::time::sleep(Duration::from_millis(20)).await;
+    }
+    server.shutdown().await.expect("shutdown");
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_corrupt_page_is_reported_and_never_sent() {
+    let dir = scratch("serve-corrupt");
+    let path = dir.join("island.ff");
+    write_atomic(&path, island()).expect("write");
+    let mut bytes = std::fs::read(&path).expect("read");
+    let entry = &island().header.pages[2];
+    bytes[entry.offset as usize + 40] ^= 0x10;
+    std::fs::write(&path, &bytes).expect("write corrupt copy");
+    let server = serve(&dir).await;
+
+    let (mut c, _, _) = Client::open(server.local_addr(), "island", 16 << 20, false).await;
+    c.request(&[(2, 5.0), (1, 1.0)]).await;
+    let mut reported = false;
+    let mut got_one = false;
+    while let Some(m) = c.recv_within(QUIET).await {
+        match m {
+            In::Control(ServerMessage::Error { message, fatal }) => {
+                assert!(!fatal);
+                assert!(message.contains("page 2"), "{message}");
+                reported = true;
+            }
+            In::Page(1, b) => {
+                assert_eq!(b, island().pages[1]);
+                got_one = true;
+            }
+            other => panic!("unexpected {other:?}"),
+        }
+    }
+    assert!(reported && got_one);
+    assert!(server.metrics().corrupt_pages >= 1);
+    server.shutdown().await.expect("shutdown");
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn unknown_scene_stream_is_refused_with_404() {
+    let dir = scenes_dir("serve-unknown");
+    let server = serve(&dir).await;
+    let url = format!("ws://{}/scenes/nope/stream", server.local_addr());
+    match tokio::time::timeout(T, tokio_tungstenite::connect_async(url))
+        .await
+        .expect("timed out")
+    {
+        Err(tokio_tungstenite::tungstenite::Error::Http(response)) => {
+            assert_eq!(response.status().as_u16(), 404);
+        }
+        other => panic!("expected a 404, got {:?}", other.map(|_| ())),
+    }
+    server.shutdown().await.expect("shutdown");
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn shutdown_closes_sessions_with_a_reason() {
+    let dir = scenes_dir("serve-shutdown");
+    let server = serve(&dir).await;
+    let addr = server.local_addr();
+    let (mut c, _, _) = Client::open(addr, "island", 16 << 20, false).await;
+    let stopping = tokio::spawn(server.shutdown());
+    match c.recv().await {
+        In::Closed(Some((code, reason))) => {
+            assert_eq!(code, 1001);
+            assert!(reason.contains("shutting down"), "{reason}");
+        }
+        other => panic!("expected a close, got {other:?}"),
+    }
+    let m = tokio::time::timeout(T, stopping)
+        .await
+        .expect("shutdown timed out")
+        .expect("join")
+        .expect("shutdown");
+    assert_eq!(m.connected_clients, 0);
+    assert!(TcpStream::connect(addr).await.is_err(), "still accepting");
+}
+
+/// Runs `farfield-server serve` in a child process (this test binary,
+/// re-run on [`serve_cli_child`]), reads the address from its first line,
+/// checks it answers, and stops it with SIGTERM.
+#[cfg(unix)]
+#[test]
+fn serve_command_prints_its_address_and_stops_on_sigterm() {
+    use std::io::{BufRead, BufReader};
+    use std::process::{Command, Stdio};
+
+    let dir = scenes_dir("serve-cli");
+    let mut child = Command::new(std::env::current_exe().expect("test binary"))
+        .args(["serve::serve_cli_child", "--exact", "--nocapture"])
+        .env("FARFIELD_SERVE_CHILD_DIR", &dir)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::null())
+        .spawn()
+        .expect("spawn");
+    let stdout = child.stdout.take().expect("stdout");
+    let (tx, rx) = std::sync::mpsc::channel();
+    std::thread::spawn(move || {
+        for line in BufReader::new(stdout).lines().map_while(Result::ok) {
+            if tx.send(line).is_err() {
+                break;
+            }
+        }
+    });
+    let addr: SocketAddr = loop {
+        let line = rx.recv_timeout(T).expect("no address printed");
+        if let Some(addr) = line.strip_prefix("listening on ") {
+            break addr.parse().expect("address");
+        }
+    };
+    let runtime = tokio::runtime::Runtime::new().expect("runtime");
+    assert_eq!(
+        runtime.block_on(http_get(addr, "/healthz")),
+        (200, "ok".into())
+    );
+    let (_, body) = runtime.block_on(http_get(addr, "/scenes"));
+    assert!(body.contains("island") && body.contains("tree"), "{body}");
+
+    let status = Command::new("kill")
+        .args(["-TERM", &child.id().to_string()])
+        .status()
+        .expect("kill");
+    assert!(status.success());
+    let deadline = std::time::Instant::now() + T;
+    let exit = loop {
+        if let Some(exit) = child.try_wait().expect("wait") {
+            break exit;
+        }
+        assert!(std::time::Instant::now() < deadline, "server did not stop");
+        std::thread::sleep(Duration::from_millis(20));
+    };
+    assert!(exit.success(), "{exit:?}");
+    let rest: Vec<String> = rx.try_iter().collect();
+    assert!(
+        rest.iter().any(|l| l.contains("\"connections_total\"")),
+        "final JSON report: {rest:?}"
+    );
+}
+
+/// The child half of the test above: does nothing unless that test started
+/// this binary with `FARFIELD_SERVE_CHILD_DIR` set.
+#[test]
+fn serve_cli_child() {
+    let Some(dir) = std::env::var_os("FARFIELD_SERVE_CHILD_DIR") else {
+        return;
+    };
+    let dir = dir.to_string_lossy().into_owned();
+    let report = crate::cli(&[
+        "serve",
+        "--scenes",
+        &dir,
+        "--listen",
+        "127.0.0.1:0",
+        "--json",
+    ])
+    .expect("serve");
+    println!("{}", report.json);
+}
