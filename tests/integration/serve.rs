@@ -412,6 +412,72 @@ async fn a_cancelled_page_never_arrives() {
     server.shutdown().await.expect("shutdown");
 }
 
+/// A client with a tiny socket buffer that never reads: the server's writer
+/// for it blocks on the socket, yet its cancels are still read, and another
+/// client is served as if nothing happened.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_client_that_stops_reading_still_has_its_cancels_read_and_stalls_no_one() {
+    let dir = scenes_dir("serve-stalled");
+    let server = serve(&dir).await;
+    let addr = server.local_addr();
+    let file = tree();
+    let n = file.header.pages.len() as u32;
+
+    let socket = tokio::net::TcpSocket::new_v4().expect("socket");
+    socket.set_recv_buffer_size(4096).expect("small buffer");
+    let stream = socket.connect(addr).await.expect("connect");
+    let url = format!("ws://{addr}/scenes/tree/stream");
+    let (ws, _) = tokio::time::timeout(
+        T,
+        tokio_tungstenite::client_async(url, MaybeTlsStream::Plain(stream)),
+    )
+    .await
+    .expect("timed out")
+    .expect("handshake");
+    let mut stalled = Client { ws };
+    stalled
+        .send(&ClientMessage::Hello {
+            protocol_version: PROTOCOL_VERSION,
+            max_in_flight_bytes: u64::MAX,
+            allow_push: false,
+        })
+        .await;
+    // The scene fits in the kernel's socket buffers, so ask for it again
+    // and again, acknowledging without reading (the server trusts acks),
+    // until far more than any buffer holds has been asked for.
+    let all: Vec<(u32, f32)> = (1..n).map(|p| (p, 1.0)).collect();
+    for _ in 0..30 {
+        stalled.request(&all).await;
+        tokio::time::sleep(Duration::from_millis(30)).await;
+        stalled.ack(1..n).await;
+    }
+    stalled.request(&all).await;
+    tokio::time::sleep(QUIET).await;
+    let before = server.metrics();
+    assert!(
+        before.queue_depth > 0,
+        "the writer should be blocked with pages still queued ({} served)",
+        before.pages_served
+    );
+    stalled
+        .send(&ClientMessage::Cancel {
+            pages: (1..n).collect(),
+        })
+        .await;
+    let deadline = tokio::time::Instant::now() + T;
+    while server.metrics().queue_depth > 0 {
+        assert!(tokio::time::Instant::now() < deadline, "cancels not read");
+        tokio::time::sleep(Duration::from_millis(20)).await;
+    }
+
+    let (mut other, _, _) = Client::open(addr, "tree", 1 << 20, false).await;
+    other.request(&all).await;
+    let got = other.pages_until_quiet().await;
+    assert_eq!(got.len() as u32, n - 1);
+    drop(stalled);
+    server.shutdown().await.expect("shutdown");
+}
+
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn another_protocol_version_gets_a_fatal_error_naming_both() {
     let dir = scenes_dir("serve-version");

@@ -68,7 +68,8 @@ pub struct RenderOutput {
     pub rgba: Vec<u8>,
     pub width: u32,
     pub height: u32,
-    /// Packing the splats and writing the buffers, in milliseconds.
+    /// Packing the splats and queueing the buffer writes, in milliseconds
+    /// (a backend may do the copy itself at submit, inside `draw_ms`).
     pub upload_ms: f64,
     /// From submitting the draw until the image is back in memory.
     pub draw_ms: f64,

@@ -165,9 +165,13 @@ impl Renderer {
         (self.target.width, self.target.height)
     }
 
-    /// Changes the frame size (each side at least 1 pixel).
+    /// Changes the frame size, clamped to 1 pixel and to the adapter's
+    /// largest texture (a camera of another size is then refused by
+    /// [`Self::render`]).
     pub fn resize(&mut self, width: u32, height: u32) {
-        if (width.max(1), height.max(1)) != self.size() {
+        let max = self.gpu.device.limits().max_texture_dimension_2d;
+        let (width, height) = (width.clamp(1, max), height.clamp(1, max));
+        if (width, height) != self.size() {
             self.target = Target::new(&self.gpu.device, width, height);
         }
     }

@@ -12,9 +12,10 @@
 //!   follow height and slope (sea-floor sand, beach, grass darkening
 //!   uphill, rock on steep or high ground, snow on high gentle ground);
 //!   normals are central differences of the height grid.
-//! - **sea**: a flat 8 x 8 quad grid at z = 0 (128 triangles): water needs
-//!   no detail, and a coarse plane keeps it from competing with terrain for
-//!   the builder's budget.
+//! - **sea**: a flat quad grid at z = 0 with half the terrain's resolution
+//!   (at least 8 x 8). Water needs no detail, but a point renderer draws
+//!   each vertex as a splat about one grid cell wide: a coarse sea would
+//!   draw discs tens of units across that cover the beaches.
 //! - **tree**: ONE tree mesh from [`super::tree`], placed `trees` times by
 //!   [`Instance`]s (rotation about Z, scale 0.7..1.3, base sunk slightly into
 //!   the ground). Any number of trees costs one mesh plus 104 bytes each.
@@ -227,23 +228,27 @@ fn ground_color(p: &IslandParams, z: f64, nz: f64, noise: u64) -> Rgb8 {
     color.map(|x| (x * brightness).round().clamp(0.0, 255.0) as u8)
 }
 
-/// The sea: a flat 8 x 8 quad grid at z = 0 over the terrain's square.
+/// The sea: a flat quad grid at z = 0 over the terrain's square, at half
+/// the terrain's resolution.
 fn sea(p: &IslandParams) -> Geometry {
-    const N: u32 = 8;
+    let cells = (p.size / 2).max(8);
     let half = p.extent / 2.0;
-    let mut positions = Vec::with_capacity(((N + 1) * (N + 1)) as usize);
-    for j in 0..=N {
-        for i in 0..=N {
-            let (u, v) = (f64::from(i) / f64::from(N), f64::from(j) / f64::from(N));
+    let mut positions = Vec::with_capacity(((cells + 1) * (cells + 1)) as usize);
+    for j in 0..=cells {
+        for i in 0..=cells {
+            let (u, v) = (
+                f64::from(i) / f64::from(cells),
+                f64::from(j) / f64::from(cells),
+            );
             positions.push(DVec3::new(-half + u * p.extent, -half + v * p.extent, 0.0));
         }
     }
-    let mut triangles = Vec::with_capacity((2 * N * N) as usize);
-    for j in 0..N {
-        for i in 0..N {
-            let a = j * (N + 1) + i;
-            triangles.push([a, a + 1, a + N + 2]);
-            triangles.push([a, a + N + 2, a + N + 1]);
+    let mut triangles = Vec::with_capacity((2 * cells * cells) as usize);
+    for j in 0..cells {
+        for i in 0..cells {
+            let a = j * (cells + 1) + i;
+            triangles.push([a, a + 1, a + cells + 2]);
+            triangles.push([a, a + cells + 2, a + cells + 1]);
         }
     }
     let n = positions.len();
