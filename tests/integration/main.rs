@@ -7,6 +7,7 @@ mod holes;
 mod layout;
 mod real_data;
 mod serve;
+mod streaming;
 mod traversal;
 
 use std::path::Path;

@@ -4,7 +4,7 @@
 //! falls back to GL (llvmpipe). `FARFIELD_BACKEND=vulkan|gl` forces one.
 //! Software adapters are always accepted: the CI machines have no GPU.
 
-use anyhow::{Context, bail};
+use anyhow::bail;
 
 /// Environment variable that forces a backend: `vulkan` or `gl`.
 pub const BACKEND_ENV: &str = "FARFIELD_BACKEND";
@@ -55,18 +55,22 @@ pub(crate) fn open() -> anyhow::Result<Gpu> {
             }
         };
         let info = adapter.get_info();
-        let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
+        let device = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
             label: Some("farfield"),
             required_limits: adapter.limits(),
             memory_hints: wgpu::MemoryHints::Performance,
             ..Default::default()
-        }))
-        .with_context(|| format!("opening a device on {} ({:?})", info.name, info.backend))?;
-        return Ok(Gpu {
-            device,
-            queue,
-            info,
-        });
+        }));
+        match device {
+            Ok((device, queue)) => {
+                return Ok(Gpu {
+                    device,
+                    queue,
+                    info,
+                });
+            }
+            Err(e) => tried.push(format!("{}: cannot open a device: {e}", describe(&info))),
+        }
     }
     bail!(
         "no GPU adapter found ({}). Without a GPU install Mesa's software drivers \

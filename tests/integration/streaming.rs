@@ -1,0 +1,355 @@
+//! The system end to end: a real memory server on port 0, real clients
+//! rendering through the GPU (lavapipe on CPU machines).
+
+use std::net::SocketAddr;
+use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
+
+use farfield_client::args::CameraSpec;
+use farfield_client::commands::render::{
+    RenderJob, Rendered, Settle, Source, Until, draw_frame, run,
+};
+use farfield_client::eval::compare;
+use farfield_client::net::SessionOptions;
+use farfield_client::render::{Kernel, Renderer, SplatStyle, headless_or_skip};
+use farfield_client::viewer::Viewer;
+use farfield_protocol::traverse::Cut;
+use farfield_server::import::{Params, load_input};
+use farfield_server::serve::{RunningServer, ServerConfig, start};
+use farfield_server::store::write_atomic;
+use farfield_tests::{scratch, shared_data};
+
+use crate::build;
+
+const SIZE: (u32, u32) = (320, 240);
+
+/// Writes the small generated island (and the bunny, when the shared data
+/// is there) into a fresh scenes folder.
+fn scenes(name: &str) -> (PathBuf, Vec<&'static str>) {
+    let dir = scratch(name);
+    let mut params = Params::default();
+    params.set("size", 96);
+    params.set("trees", 3);
+    write_atomic(
+        &dir.join("island.ff"),
+        &build(load_input("gen:island", &params).unwrap()),
+    )
+    .unwrap();
+    let mut names = vec!["island"];
+    if let Some(data) = shared_data() {
+        let bunny = load_input(
+            data.join("stanford-bunny.obj").to_str().unwrap(),
+            &Params::default(),
+        )
+        .unwrap();
+        write_atomic(&dir.join("bunny.ff"), &build(bunny)).unwrap();
+        names.push("bunny");
+    }
+    (dir, names)
+}
+
+fn runtime() -> tokio::runtime::Runtime {
+    tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(2)
+        .enable_all()
+        .build()
+        .unwrap()
+}
+
+fn serve(rt: &tokio::runtime::Runtime, dir: &Path, port: u16) -> RunningServer {
+    let config = ServerConfig::new(dir, SocketAddr::from(([127, 0, 0, 1], port)));
+    rt.block_on(start(config)).expect("server starts")
+}
+
+fn job(source: Source, camera: CameraSpec) -> RenderJob {
+    RenderJob {
+        source,
+        camera,
+        width: SIZE.0,
+        height: SIZE.1,
+        out: None,
+        until: Until::Refined,
+        threshold_px: 1.0,
+        kernel: Kernel::Square,
+        session: SessionOptions::default(),
+        cache_bytes: 256 << 20,
+        timeout: Duration::from_secs(60),
+    }
+}
+
+fn camera() -> CameraSpec {
+    CameraSpec::Orbit {
+        azimuth_deg: 200.0,
+        elevation_deg: 35.0,
+        distance: 2.0,
+    }
+}
+
+fn psnr(a: &[u8], b: &[u8]) -> f64 {
+    compare(a, b, SIZE.0, SIZE.1, 8).unwrap().psnr_db
+}
+
+fn render(renderer: &mut Renderer, job: &RenderJob) -> Rendered {
+    let r = run(job, renderer, false).expect("render");
+    assert!(r.report.refined, "not refined: {:?}", r.report.last_error);
+    r
+}
+
+#[test]
+fn streamed_images_equal_file_images_and_overfetch_is_low() {
+    let Some(mut renderer) = headless_or_skip(SIZE.0, SIZE.1).unwrap() else {
+        return;
+    };
+    let (dir, names) = scenes("stream-eq");
+    let rt = runtime();
+    let server = serve(&rt, &dir, 0);
+    let url = format!("http://{}", server.local_addr());
+    for name in names {
+        let file = render(
+            &mut renderer,
+            &job(Source::File(dir.join(format!("{name}.ff"))), camera()),
+        );
+        let streamed = render(
+            &mut renderer,
+            &job(
+                Source::Server {
+                    url: url.clone(),
+                    scene: name.into(),
+                },
+                camera(),
+            ),
+        );
+        let p = psnr(&file.rgba, &streamed.rgba);
+        assert!(
+            p >= 40.0,
+            "{name}: streamed image differs from the file's: PSNR {p} dB"
+        );
+        // The picture is not empty: some pixel differs from the background.
+        assert!(
+            file.rgba.chunks_exact(4).any(|px| px[..3] != [0, 0, 0]),
+            "{name}: blank image"
+        );
+        let r = &streamed.report;
+        assert!(r.time_to_first_image_ms.is_some() && r.bytes_received > 0);
+        let overfetch = r.overfetch_ratio.unwrap();
+        assert!(overfetch <= 1.5, "{name}: overfetch {overfetch}");
+    }
+    rt.block_on(server.shutdown()).unwrap();
+}
+
+#[test]
+fn the_first_image_comes_from_page_zero_and_error_never_grows() {
+    let Some(mut renderer) = headless_or_skip(SIZE.0, SIZE.1).unwrap() else {
+        return;
+    };
+    let (dir, _) = scenes("progressive");
+    let rt = runtime();
+    let server = serve(&rt, &dir, 0);
+    let url = format!("http://{}", server.local_addr());
+    let mut viewer =
+        Viewer::open_remote(&url, "island", SessionOptions::default(), 256 << 20).unwrap();
+    let started = Instant::now();
+    while viewer.hierarchy().is_none_or(|h| !h.is_resident(0)) {
+        assert!(started.elapsed() < Duration::from_secs(20), "no page 0");
+        viewer.pump(Duration::from_millis(50)).unwrap();
+    }
+    let h = viewer.hierarchy().unwrap();
+    assert_eq!(
+        h.resident_pages(),
+        1,
+        "only page 0 before anything was asked for"
+    );
+    let page0_nodes = u64::from(h.header.pages[0].node_count);
+    let style = SplatStyle {
+        kernel: Kernel::Square,
+        ..SplatStyle::default()
+    };
+    let header = h.header.clone();
+    let cam = camera().resolve(&header, SIZE.0, SIZE.1);
+    let (mut cut, mut first) = (Cut::default(), Vec::new());
+    draw_frame(
+        &mut viewer,
+        &mut renderer,
+        &cam,
+        1.0,
+        &style,
+        &mut cut,
+        &mut first,
+    )
+    .unwrap();
+    assert!(!cut.splats.is_empty() && cut.splats.iter().all(|s| s.node < page0_nodes));
+    assert!(
+        !cut.wanted.is_empty(),
+        "page 0 alone should not be the whole model"
+    );
+
+    // Refine at the final threshold and keep every frame.
+    let mut settle = Settle::new(1.0, Until::Refined, started, Duration::from_secs(60));
+    settle.threshold = 1.0;
+    settle.keep_frames = true;
+    settle
+        .run(&mut viewer, &mut renderer, &style, &|hd| {
+            camera().resolve(hd, SIZE.0, SIZE.1)
+        })
+        .unwrap();
+    assert!(settle.time_to_refined_ms.is_some(), "{:?}", settle.error);
+    let last = settle.rgba.clone();
+    let mut frames = vec![first];
+    frames.extend(settle.frames.clone());
+    assert!(
+        frames.len() >= 3,
+        "too few frames ({}) to see refinement",
+        frames.len()
+    );
+    let errors: Vec<f64> = frames
+        .iter()
+        .map(|f| compare(f, &last, SIZE.0, SIZE.1, 8).unwrap().rmse)
+        .collect();
+    assert!(
+        errors[0] > 0.0,
+        "the first image already equals the final one"
+    );
+    for w in errors.windows(2) {
+        // Allow a sliver of noise: a finer splat can differ on a few edge pixels.
+        assert!(
+            w[1] <= w[0] * 1.02 + 0.05,
+            "error grew as pages arrived: {errors:?}"
+        );
+    }
+    drop(viewer);
+    rt.block_on(server.shutdown()).unwrap();
+}
+
+#[test]
+fn two_clients_at_once_and_a_stalled_reader_does_not_stall_others() {
+    use futures_util::SinkExt;
+    use tokio_tungstenite::tungstenite::Message;
+    let Some(mut renderer) = headless_or_skip(SIZE.0, SIZE.1).unwrap() else {
+        return;
+    };
+    let (dir, _) = scenes("two-clients");
+    let rt = runtime();
+    let server = serve(&rt, &dir, 0);
+    let url = format!("http://{}", server.local_addr());
+    // A client that asks for every page with a tiny window and never reads.
+    let ws = format!("ws://{}/scenes/island/stream", server.local_addr());
+    let pages = farfield_server::store::SceneFile::open(&dir.join("island.ff"))
+        .unwrap()
+        .header
+        .pages
+        .len() as u32;
+    let stalled = rt.block_on(async move {
+        let (mut socket, _) = tokio_tungstenite::connect_async(ws).await.unwrap();
+        use farfield_protocol::codec::encode_control;
+        use farfield_protocol::messages::{ClientMessage, PROTOCOL_VERSION, PageWish};
+        let hello = ClientMessage::Hello {
+            protocol_version: PROTOCOL_VERSION,
+            max_in_flight_bytes: 64 << 10,
+            allow_push: true,
+        };
+        socket
+            .send(Message::Binary(encode_control(&hello).into()))
+            .await
+            .unwrap();
+        let wishes = (0..pages)
+            .map(|page| PageWish {
+                page,
+                priority: 1.0,
+            })
+            .collect();
+        socket
+            .send(Message::Binary(
+                encode_control(&ClientMessage::Request { pages: wishes }).into(),
+            ))
+            .await
+            .unwrap();
+        socket // kept open, never read
+    });
+    let file = render(
+        &mut renderer,
+        &job(Source::File(dir.join("island.ff")), camera()),
+    );
+    let other = CameraSpec::Orbit {
+        azimuth_deg: 20.0,
+        elevation_deg: 60.0,
+        distance: 3.0,
+    };
+    let file_other = render(
+        &mut renderer,
+        &job(Source::File(dir.join("island.ff")), other),
+    );
+    let url2 = url.clone();
+    let second = std::thread::spawn(move || {
+        let mut r = Renderer::new_headless(SIZE.0, SIZE.1).unwrap();
+        render(
+            &mut r,
+            &job(
+                Source::Server {
+                    url: url2,
+                    scene: "island".into(),
+                },
+                other,
+            ),
+        )
+    });
+    let first = render(
+        &mut renderer,
+        &job(
+            Source::Server {
+                url,
+                scene: "island".into(),
+            },
+            camera(),
+        ),
+    );
+    let second = second.join().unwrap();
+    assert!(psnr(&first.rgba, &file.rgba) >= 40.0);
+    assert!(psnr(&second.rgba, &file_other.rgba) >= 40.0);
+    drop(stalled);
+    rt.block_on(server.shutdown()).unwrap();
+}
+
+#[test]
+fn a_client_survives_a_server_restart_and_finishes_correctly() {
+    let Some(mut renderer) = headless_or_skip(SIZE.0, SIZE.1).unwrap() else {
+        return;
+    };
+    let (dir, _) = scenes("restart");
+    let file = render(
+        &mut renderer,
+        &job(Source::File(dir.join("island.ff")), camera()),
+    );
+    let rt = runtime();
+    let server = serve(&rt, &dir, 0);
+    let addr = server.local_addr();
+    // A small window makes the stream slow enough to be cut in the middle.
+    let mut j = job(
+        Source::Server {
+            url: format!("http://{addr}"),
+            scene: "island".into(),
+        },
+        camera(),
+    );
+    j.session.max_in_flight_bytes = 64 << 10;
+    let client = std::thread::spawn(move || {
+        let mut r = Renderer::new_headless(SIZE.0, SIZE.1).unwrap();
+        run(&j, &mut r, false).unwrap()
+    });
+    // Stop once some pages went out, then come back on the same port.
+    let deadline = Instant::now() + Duration::from_secs(20);
+    while server.metrics().pages_served < 3 && Instant::now() < deadline {
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    rt.block_on(server.shutdown()).unwrap();
+    std::thread::sleep(Duration::from_millis(300));
+    let server = serve(&rt, &dir, addr.port());
+    let done = client.join().unwrap();
+    assert!(done.report.refined, "{:?}", done.report.last_error);
+    assert!(
+        done.report.disconnects >= 1,
+        "the client never noticed the restart"
+    );
+    let p = psnr(&done.rgba, &file.rgba);
+    assert!(p >= 40.0, "after a restart the image differs: PSNR {p}");
+    rt.block_on(server.shutdown()).unwrap();
+}
