@@ -25,6 +25,26 @@ struct Cli {
 enum Command {
     /// Render one view to a PNG, streaming pages from a server or reading a file.
     Render(Box<RenderArgs>),
+    /// Measure the memory server on loopback: time to first image, overfetch,
+    /// throughput with 1 and N clients next to plain TCP, memory while streaming.
+    BenchStream {
+        /// A paged file to serve (the server runs in this process).
+        scene: PathBuf,
+        /// Client counts to measure, e.g. 1,16.
+        #[arg(long, value_delimiter = ',', default_value = "1,16")]
+        clients: Vec<usize>,
+        /// Seconds of streaming per client count.
+        #[arg(long, default_value_t = 5.0)]
+        seconds: f64,
+        /// Server page cache, MiB (smaller than the scene shows memory stays flat).
+        #[arg(long, default_value_t = 16)]
+        cache_mib: u64,
+        /// Repeats of the time-to-first-image measurement.
+        #[arg(long, default_value_t = 9)]
+        repeats: usize,
+        #[arg(long)]
+        json: bool,
+    },
     /// Build the default scene, serve it in-process, fly a client through it.
     Demo {
         /// Folder for the scene file, frames, CSV and summary.
@@ -282,6 +302,34 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             json,
         } => compare(a, b, tolerance, json),
         Command::Render(args) => render(*args),
+        Command::BenchStream {
+            scene,
+            clients,
+            seconds,
+            cache_mib,
+            repeats,
+            json,
+        } => {
+            use farfield_client::commands::bench_stream::{default_job, describe, run_bench};
+            anyhow::ensure!(
+                seconds.is_finite() && seconds > 0.0,
+                "--seconds must be positive"
+            );
+            let job = farfield_client::commands::bench_stream::BenchStreamJob {
+                clients,
+                seconds,
+                cache_bytes: cache_mib.max(1) << 20,
+                repeats,
+                ..default_job(&scene)
+            };
+            let report = run_bench(&job)?;
+            if json {
+                println!("{}", serde_json::to_string(&report)?);
+            } else {
+                print!("{}", describe(&report));
+            }
+            Ok(())
+        }
         Command::Demo { out } => {
             let summary =
                 farfield_client::commands::demo::run(&farfield_client::commands::demo::DemoJob {

@@ -353,3 +353,40 @@ fn a_client_survives_a_server_restart_and_finishes_correctly() {
     assert!(p >= 40.0, "after a restart the image differs: PSNR {p}");
     rt.block_on(server.shutdown()).unwrap();
 }
+
+#[test]
+fn the_demo_writes_frames_a_csv_and_a_summary() {
+    use farfield_client::commands::demo::{DemoJob, run as demo};
+    if headless_or_skip(8, 8).unwrap().is_none() {
+        return;
+    }
+    let out = scratch("demo");
+    let job = DemoJob {
+        out: out.clone(),
+        width: 160,
+        height: 90,
+        path_seconds: 1.0,
+        fps: 4.0,
+    };
+    let first = demo(&job).expect("demo runs");
+    assert!(
+        first.built && first.time_to_refined_ms.is_some(),
+        "{}",
+        first.text
+    );
+    let csv = std::fs::read_to_string(out.join("frames.csv")).unwrap();
+    let rows = csv.lines().count() - 1;
+    assert_eq!(rows, first.frames);
+    assert!(rows >= 5, "{rows} frames");
+    assert!(csv.starts_with(farfield_client::commands::fly::CSV_HEADER));
+    let pngs = std::fs::read_dir(out.join("frames")).unwrap().count();
+    assert_eq!(pngs, rows);
+    assert!(
+        std::fs::read_to_string(out.join("summary.txt"))
+            .unwrap()
+            .contains("first image")
+    );
+    // The second run reuses the built scene.
+    let second = demo(&job).expect("demo runs again");
+    assert!(!second.built);
+}

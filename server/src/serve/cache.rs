@@ -7,8 +7,8 @@
 //! re-encode. A page's checksum is verified once, when it enters the cache;
 //! a page that fails is reported and never cached or sent.
 
-use std::sync::Mutex;
 use std::sync::atomic::Ordering;
+use std::sync::{Arc, Mutex};
 
 use axum::body::Bytes;
 use farfield_protocol::FormatError;
@@ -88,24 +88,6 @@ impl PageCache {
             .store(inner.lru.len() as u64, Ordering::Relaxed);
     }
 
-    /// A page's frame for sending: from the cache (a hit) or read from the
-    /// map and verified (a miss). Blocking on a miss: the map may fault in
-    /// from disk, so async callers use [`PageCache::fetch`].
-    pub fn load(
-        &self,
-        scene: &ServedScene,
-        page: u32,
-        metrics: &Metrics,
-    ) -> Result<Bytes, FormatError> {
-        let key = (scene.id, page);
-        if let Some(frame) = self.get(key) {
-            Metrics::add(&metrics.cache_hits, 1);
-            return Ok(frame);
-        }
-        Metrics::add(&metrics.cache_misses, 1);
-        self.read_through(scene, page, metrics)
-    }
-
     /// Reads, verifies and caches a page that was not found in the cache.
     pub fn read_through(
         &self,
@@ -120,18 +102,21 @@ impl PageCache {
         Ok(frame)
     }
 
-    /// [`PageCache::load`] for async callers: hits answer at once, misses
-    /// read on a blocking thread so a slow disk never stalls the runtime.
-    pub async fn fetch(
-        self: &std::sync::Arc<Self>,
-        scene: &std::sync::Arc<ServedScene>,
+    /// A cached frame, counted as a hit; `None` (not yet counted) on a miss.
+    pub fn hit(&self, scene: &ServedScene, page: u32, metrics: &Metrics) -> Option<Bytes> {
+        let frame = self.get((scene.id, page))?;
+        Metrics::add(&metrics.cache_hits, 1);
+        Some(frame)
+    }
+
+    /// Reads a page that [`PageCache::hit`] missed, on a blocking thread so
+    /// a slow disk never stalls the runtime, and counts the miss.
+    pub async fn miss(
+        self: &Arc<Self>,
+        scene: &Arc<ServedScene>,
         page: u32,
-        metrics: &std::sync::Arc<Metrics>,
+        metrics: &Arc<Metrics>,
     ) -> Result<Bytes, FormatError> {
-        if let Some(frame) = self.get((scene.id, page)) {
-            Metrics::add(&metrics.cache_hits, 1);
-            return Ok(frame);
-        }
         Metrics::add(&metrics.cache_misses, 1);
         let (cache, scene2, metrics2) = (self.clone(), scene.clone(), metrics.clone());
         match tokio::task::spawn_blocking(move || cache.read_through(&scene2, page, &metrics2))

@@ -30,6 +30,7 @@ use std::sync::Arc;
 use std::sync::atomic::Ordering;
 use std::time::Duration;
 
+use axum::serve::ListenerExt;
 use tokio::sync::{Notify, watch};
 use tokio::task::JoinHandle;
 
@@ -166,6 +167,14 @@ pub async fn start_scenes(
     })?;
     let app = routes::router(state.clone());
     let mut signal = shutdown_rx;
+    // Pages are written one frame at a time, each smaller than a loopback
+    // segment: with Nagle's algorithm on, every one would wait for the
+    // previous one's acknowledgement.
+    let listener = listener.tap_io(|tcp| {
+        if let Err(e) = tcp.set_nodelay(true) {
+            tracing::debug!("TCP_NODELAY: {e}");
+        }
+    });
     let server = axum::serve(
         listener,
         app.into_make_service_with_connect_info::<SocketAddr>(),

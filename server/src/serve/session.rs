@@ -19,7 +19,7 @@ use std::time::{Duration, Instant};
 
 use axum::body::Bytes;
 use axum::extract::ws::{CloseFrame, Message, WebSocket};
-use farfield_protocol::codec::{decode_control, encode_control, frame_kind};
+use farfield_protocol::codec::{MAX_CONTROL_BYTES, decode_control, encode_control, frame_kind};
 use farfield_protocol::messages::{ClientMessage, FrameKind, PROTOCOL_VERSION, ServerMessage};
 use futures_util::stream::{SplitSink, SplitStream};
 use futures_util::{SinkExt, StreamExt};
@@ -212,6 +212,21 @@ pub(crate) async fn run(
             return;
         }
     };
+    // The Scene message carries the whole page directory (40 bytes a page)
+    // and control messages are capped; past the cap the message could not be
+    // encoded, so say so instead of sending a broken frame.
+    let header = scene.file.header_bytes();
+    if header.len() + scene.name.len() + 64 > MAX_CONTROL_BYTES {
+        let end = End::Fatal(format!(
+            "scene {:?}: its {}-byte header exceeds the protocol's {}-byte control message limit",
+            scene.name,
+            header.len(),
+            MAX_CONTROL_BYTES
+        ));
+        finish_early(&mut sink, &end).await;
+        tracing::warn!(%peer, scene = %scene.name, "client refused: {}", describe(&end));
+        return;
+    }
     tracing::info!(%peer, scene = %scene.name, window, allow_push, "client connected");
 
     let shared = Shared {
@@ -224,7 +239,7 @@ pub(crate) async fn run(
                 })),
                 Bytes::from(encode_control(&ServerMessage::Scene {
                     name: scene.name.clone(),
-                    header: scene.file.header_bytes().to_vec(),
+                    header: header.to_vec(),
                 })),
             ]),
             ending: None,
@@ -497,6 +512,15 @@ async fn write_loop(
         let shutting_down = *shutdown.borrow();
         let frame = match next_action(shared, scene, shutting_down) {
             Action::Wait => {
+                // Frames are queued with `feed`; before sleeping, everything
+                // queued goes out.
+                let flushed = tokio::select! {
+                    r = sink.flush() => r,
+                    () = shutdown_signalled(&mut shutdown) => return End::ShuttingDown,
+                };
+                if flushed.is_err() {
+                    return End::ClientGone;
+                }
                 tokio::select! {
                     () = shared.wake.notified() => {}
                     () = shutdown_signalled(&mut shutdown) => {}
@@ -529,7 +553,21 @@ async fn write_loop(
                 if !next.pushed {
                     app.metrics.queue_depth.fetch_sub(1, Ordering::Relaxed);
                 }
-                let fetched = app.cache.fetch(scene, next.page, &app.metrics).await;
+                let fetched = match app.cache.hit(scene, next.page, &app.metrics) {
+                    Some(frame) => Ok(frame),
+                    None => {
+                        // A disk read may take a while: frames already
+                        // queued go out first rather than wait for it.
+                        let flushed = tokio::select! {
+                            r = sink.flush() => r,
+                            () = shutdown_signalled(&mut shutdown) => return End::ShuttingDown,
+                        };
+                        if flushed.is_err() {
+                            return End::ClientGone;
+                        }
+                        app.cache.miss(scene, next.page, &app.metrics).await
+                    }
+                };
                 match fetched {
                     Ok(frame) => {
                         let page_bytes = frame.len().saturating_sub(1) as u64;
@@ -567,8 +605,11 @@ async fn write_loop(
                 }
             }
         };
+        // `feed` queues the frame (the websocket layer writes to the socket
+        // once its buffer fills); the flush above sends the rest when the
+        // schedule runs dry, so consecutive pages share system calls.
         let sent = tokio::select! {
-            r = sink.send(Message::Binary(frame)) => r,
+            r = sink.feed(Message::Binary(frame)) => r,
             () = shutdown_signalled(&mut shutdown) => {
                 // The client is not reading; it gets no goodbye.
                 return End::ShuttingDown;
