@@ -49,12 +49,21 @@ pub fn encode_page_frame(page: &[u8]) -> Vec<u8> {
     out
 }
 
+/// A header frame: the kind byte, then the file header as stored.
+pub fn encode_header_frame(header: &[u8]) -> Vec<u8> {
+    let mut out = Vec::with_capacity(header.len() + 1);
+    out.push(FrameKind::Header as u8);
+    out.extend_from_slice(header);
+    out
+}
+
 /// Splits a frame into its kind and payload.
 pub fn frame_kind(frame: &[u8]) -> Result<(FrameKind, &[u8]), CodecError> {
     let (&kind, payload) = frame.split_first().ok_or(CodecError::Empty)?;
     match kind {
         0 => Ok((FrameKind::Control, payload)),
         1 => Ok((FrameKind::Page, payload)),
+        2 => Ok((FrameKind::Header, payload)),
         other => Err(CodecError::UnknownKind(other)),
     }
 }

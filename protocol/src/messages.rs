@@ -9,10 +9,13 @@
 //!
 //! 1. client -> [`ClientMessage::Hello`] with its protocol version and limits;
 //! 2. server -> [`ServerMessage::Hello`] (or [`ServerMessage::Error`] and a
-//!    close, e.g. for another protocol version), then
-//!    [`ServerMessage::Scene`] with the file header, then page 0;
+//!    close, e.g. for another protocol version), then a header frame with
+//!    the file header as stored (any size: it carries the page directory),
+//!    then page 0;
 //! 3. client -> [`ClientMessage::Request`] (pages with priorities; a later
-//!    request for the same page updates its priority) and
+//!    request for a page still queued updates its priority; a request for a
+//!    page sent but not yet acknowledged is ignored, and one for a page
+//!    acknowledged earlier sends it again) and
 //!    [`ClientMessage::Cancel`] for pages that fell out of view;
 //! 4. server -> pages, highest priority first, as long as the bytes it has
 //!    sent but the client has not acknowledged ([`ClientMessage::Received`])
@@ -33,6 +36,9 @@ pub enum FrameKind {
     Control = 0,
     /// A page's stored bytes (its index is in its own header).
     Page = 1,
+    /// The scene's file header as stored (`FileHeader::decode` reads it);
+    /// raw bytes like a page, so its size has no control-message limit.
+    Header = 2,
 }
 
 /// What a client says.
@@ -51,6 +57,8 @@ pub enum ClientMessage {
     /// Pages no longer wanted (fell out of view); unknown pages are ignored.
     Cancel { pages: Vec<u32> },
     /// Pages that arrived, so their bytes no longer count as in flight.
+    /// Every page that arrives is acknowledged, even one that failed its
+    /// checksum, before it is asked for again.
     Received { pages: Vec<u32> },
 }
 
@@ -68,8 +76,6 @@ pub enum ServerMessage {
         protocol_version: u32,
         server: String,
     },
-    /// The scene's file header (as stored: `FileHeader::decode` reads it).
-    Scene { name: String, header: Vec<u8> },
     /// Something went wrong; `fatal` errors are followed by a close.
     Error { message: String, fatal: bool },
 }

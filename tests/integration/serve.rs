@@ -115,6 +115,7 @@ fn metric(text: &str, name: &str) -> u64 {
 #[derive(Debug)]
 enum In {
     Control(ServerMessage),
+    Header(Vec<u8>),
     Page(u32, Vec<u8>),
     /// Close code and reason (none when the connection just ended).
     Closed(Option<(u16, String)>),
@@ -156,11 +157,8 @@ impl Client {
             other => panic!("expected Hello, got {other:?}"),
         }
         let header = match c.recv().await {
-            In::Control(ServerMessage::Scene { name, header }) => {
-                assert_eq!(name, scene);
-                header
-            }
-            other => panic!("expected Scene, got {other:?}"),
+            In::Header(header) => header,
+            other => panic!("expected the header, got {other:?}"),
         };
         let page0 = match c.recv().await {
             In::Page(0, bytes) => bytes,
@@ -195,6 +193,7 @@ impl Client {
                         let index = u32::from_le_bytes(page[4..8].try_into().expect("index"));
                         In::Page(index, page.to_vec())
                     }
+                    (FrameKind::Header, header) => In::Header(header.to_vec()),
                     (FrameKind::Control, _) => {
                         In::Control(decode_control(&b).expect("server control message"))
                     }
@@ -548,11 +547,11 @@ async fn another_protocol_version_gets_a_fatal_error_naming_both() {
     server.shutdown().await.expect("shutdown");
 }
 
-/// A scene with so many pages that its header (40 bytes a page) cannot fit
-/// one control message is refused with a clear fatal error, not a broken
-/// frame. (A protocol limit: see `codec::MAX_CONTROL_BYTES`.)
+/// A scene with so many pages that its header (40 bytes a page) is larger
+/// than any control message may be still opens: the header travels as its
+/// own raw frame, like a page.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
-async fn a_header_too_large_for_one_message_is_a_clear_fatal_error() {
+async fn a_header_larger_than_a_control_message_still_arrives_whole() {
     let dir = scratch("serve-huge-header");
     let mut params = Params::default();
     params.set("size", 64);
@@ -566,21 +565,9 @@ async fn a_header_too_large_for_one_message_is_a_clear_fatal_error() {
     assert!(FileHeader::encoded_len(file.header.pages.len()) > MAX_CONTROL_BYTES);
     write_atomic(&dir.join("many.ff"), &file).expect("write");
     let server = serve(&dir).await;
-    let mut c = Client::connect(server.local_addr(), "many").await;
-    c.send(&ClientMessage::Hello {
-        protocol_version: PROTOCOL_VERSION,
-        max_in_flight_bytes: 1 << 20,
-        allow_push: false,
-    })
-    .await;
-    match c.recv().await {
-        In::Control(ServerMessage::Error { message, fatal }) => {
-            assert!(fatal);
-            assert!(message.contains("control message limit"), "{message}");
-        }
-        other => panic!("expected a fatal error, got {other:?}"),
-    }
-    assert!(matches!(c.recv().await, In::Closed(_)));
+    let (_c, header, page0) = Client::open(server.local_addr(), "many", 1 << 20, false).await;
+    assert_eq!(header, file.header.encode());
+    assert_eq!(page0, file.pages[0]);
     server.shutdown().await.expect("shutdown");
 }
 

@@ -283,7 +283,8 @@ async fn stream_all(
     page_count: &AtomicU64,
     byte_count: &AtomicU64,
 ) -> anyhow::Result<()> {
-    let (socket, _) = tokio_tungstenite::connect_async(url).await?;
+    // No Nagle: acknowledgements are small and must not wait for delayed ACKs.
+    let (socket, _) = tokio_tungstenite::connect_async_with_config(url, None, true).await?;
     let (mut sink, mut stream) = socket.split();
     let send = |m: ClientMessage| Message::Binary(codec::encode_control(&m).into());
     sink.send(send(ClientMessage::Hello {

@@ -156,7 +156,9 @@ async fn session(
     events: &mpsc::UnboundedSender<NetEvent>,
     outgoing: &mut mpsc::UnboundedReceiver<Outgoing>,
 ) -> Result<SessionEnd, String> {
-    let (socket, _) = tokio_tungstenite::connect_async(url)
+    // No Nagle: requests and acknowledgements are small and must not sit
+    // waiting for the server's delayed ACKs (40 ms a round trip otherwise).
+    let (socket, _) = tokio_tungstenite::connect_async_with_config(url, None, true)
         .await
         .map_err(|e| format!("connect {url}: {e}"))?;
     let (mut sink, mut stream) = socket.split();
@@ -210,10 +212,18 @@ async fn session(
 /// which needs no action.
 fn decode(frame: &[u8]) -> Result<Option<NetEvent>, CodecError> {
     let (kind, bytes) = codec::frame_kind(frame)?;
-    if kind == FrameKind::Page {
-        return Ok(Some(NetEvent::Page {
-            bytes: bytes.to_vec(),
-        }));
+    match kind {
+        FrameKind::Page => {
+            return Ok(Some(NetEvent::Page {
+                bytes: bytes.to_vec(),
+            }));
+        }
+        FrameKind::Header => {
+            return Ok(Some(NetEvent::Connected {
+                header: bytes.to_vec(),
+            }));
+        }
+        FrameKind::Control => {}
     }
     Ok(match codec::decode_control::<ServerMessage>(frame)? {
         ServerMessage::Hello {
@@ -225,7 +235,6 @@ fn decode(frame: &[u8]) -> Result<Option<NetEvent>, CodecError> {
             fatal: true,
         }),
         ServerMessage::Hello { .. } => None,
-        ServerMessage::Scene { header, .. } => Some(NetEvent::Connected { header }),
         ServerMessage::Error { message, fatal } => Some(NetEvent::ServerError { message, fatal }),
     })
 }

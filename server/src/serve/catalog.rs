@@ -140,14 +140,6 @@ impl Catalog {
             let id = u32::try_from(catalog.scenes.len()).unwrap_or(u32::MAX);
             match ServedScene::open(id, name, path) {
                 Ok(scene) => {
-                    let header = scene.file.header_bytes().len();
-                    if header + 1024 > farfield_protocol::codec::MAX_CONTROL_BYTES {
-                        tracing::warn!(
-                            scene = %name,
-                            header,
-                            "header too large for one control message: clients will be refused"
-                        );
-                    }
                     tracing::info!(
                         scene = %name,
                         path = %path.display(),

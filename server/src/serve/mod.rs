@@ -12,8 +12,8 @@
 //! - [`cache`]: the byte-bounded LRU of verified page frames;
 //! - [`prefetch`]: read-ahead of child pages on a small thread pool;
 //! - [`schedule`]: one connection's priority queue and in-flight window;
-//! - [`session`]: the websocket session itself;
-//! - [`routes`]: the HTTP endpoints;
+//! - `session`: the websocket session itself;
+//! - `routes`: the HTTP endpoints;
 //! - [`metrics`]: atomics and the Prometheus text.
 
 pub mod cache;

@@ -1,5 +1,5 @@
 //! The HTTP surface: scene listing, one scene, health, metrics, and the
-//! websocket upgrade that starts a [`session`](super::session).
+//! websocket upgrade that starts a session (`session.rs`).
 //!
 //! Unknown scenes and paths answer 404 with a JSON `{"error": ...}` body, so
 //! scripts and the client can print the reason.

@@ -19,7 +19,7 @@ use std::time::{Duration, Instant};
 
 use axum::body::Bytes;
 use axum::extract::ws::{CloseFrame, Message, WebSocket};
-use farfield_protocol::codec::{MAX_CONTROL_BYTES, decode_control, encode_control, frame_kind};
+use farfield_protocol::codec::{decode_control, encode_control, encode_header_frame, frame_kind};
 use farfield_protocol::messages::{ClientMessage, FrameKind, PROTOCOL_VERSION, ServerMessage};
 use futures_util::stream::{SplitSink, SplitStream};
 use futures_util::{SinkExt, StreamExt};
@@ -170,9 +170,9 @@ async fn next_frame(stream: &mut Stream) -> Frame {
 /// Decodes a client control frame, or says why it is not one.
 fn decode(frame: &[u8]) -> Result<ClientMessage, String> {
     match frame_kind(frame) {
-        Ok((FrameKind::Page, _)) => {
-            Err("page frame from a client: clients send control messages only".into())
-        }
+        Ok((FrameKind::Page | FrameKind::Header, _)) => Err(
+            "page frame (or header frame) from a client: clients send control messages only".into(),
+        ),
         Ok((FrameKind::Control, _)) => {
             decode_control(frame).map_err(|e| format!("undecodable control message: {e}"))
         }
@@ -212,21 +212,7 @@ pub(crate) async fn run(
             return;
         }
     };
-    // The Scene message carries the whole page directory (40 bytes a page)
-    // and control messages are capped; past the cap the message could not be
-    // encoded, so say so instead of sending a broken frame.
     let header = scene.file.header_bytes();
-    if header.len() + scene.name.len() + 64 > MAX_CONTROL_BYTES {
-        let end = End::Fatal(format!(
-            "scene {:?}: its {}-byte header exceeds the protocol's {}-byte control message limit",
-            scene.name,
-            header.len(),
-            MAX_CONTROL_BYTES
-        ));
-        finish_early(&mut sink, &end).await;
-        tracing::warn!(%peer, scene = %scene.name, "client refused: {}", describe(&end));
-        return;
-    }
     tracing::info!(%peer, scene = %scene.name, window, allow_push, "client connected");
 
     let shared = Shared {
@@ -237,10 +223,7 @@ pub(crate) async fn run(
                     protocol_version: PROTOCOL_VERSION,
                     server: format!("farfield-server {}", env!("CARGO_PKG_VERSION")),
                 })),
-                Bytes::from(encode_control(&ServerMessage::Scene {
-                    name: scene.name.clone(),
-                    header: header.to_vec(),
-                })),
+                Bytes::from(encode_header_frame(header)),
             ]),
             ending: None,
             stats: Stats::default(),
