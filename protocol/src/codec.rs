@@ -120,13 +120,18 @@ mod tests {
                 m
             );
         }
-        let s = ServerMessage::Scene {
-            name: "bunny".into(),
-            header: vec![1, 2, 3],
+        let s = ServerMessage::Error {
+            message: "bunny".into(),
+            fatal: false,
         };
         assert_eq!(
             decode_control::<ServerMessage>(&encode_control(&s)).unwrap(),
             s
+        );
+        let header = encode_header_frame(&[5; 3]);
+        assert_eq!(
+            frame_kind(&header).unwrap(),
+            (FrameKind::Header, &[5u8, 5, 5][..])
         );
         let page = encode_page_frame(&[9, 9]);
         assert_eq!(frame_kind(&page).unwrap(), (FrameKind::Page, &[9u8, 9][..]));
