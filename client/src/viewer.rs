@@ -10,7 +10,6 @@
 //! [`MAX_PAGE_FAILURES`] times), never drawn.
 
 use std::collections::HashMap;
-use std::num::NonZeroUsize;
 use std::path::Path;
 use std::time::Duration;
 
@@ -313,9 +312,4 @@ impl Viewer {
             .map(|(&p, _)| p)
             .collect()
     }
-}
-
-/// A cache size that is at least one page.
-pub fn cache_budget(bytes: u64) -> usize {
-    NonZeroUsize::new(bytes as usize).map_or(1, NonZeroUsize::get)
 }

@@ -20,7 +20,7 @@ use super::leaves::{Leaf, cone_from_u8, cone_to_u8, pack_normal, unpack_normal};
 
 /// Binary splits by bisection before falling back to median splits.
 pub const BISECT_DEPTH: u32 = 96;
-/// Ranges larger than this are built on two threads.
+/// A root range larger than this builds its children on two threads.
 const PARALLEL_MIN: usize = 50_000;
 
 /// A child or root: a leaf index (high bit set) or an interior-node index.
@@ -139,9 +139,12 @@ fn build_range(
     let mut children = [NodeRef::leaf(0); 4];
     let mut summaries = Vec::with_capacity(4);
     let mut collapsed = 0;
-    if leaves.len() >= PARALLEL_MIN {
-        // Build the child ranges on two threads, each into its own node list,
-        // then append those lists and shift their interior references.
+    if depth == 0 && leaves.len() >= PARALLEL_MIN {
+        // Build the root's 2 to 4 child ranges on two threads, each into its
+        // own node list, then append those lists one by one (each freed as
+        // it is moved) and shift their interior references. Only at the
+        // root: nested, each level's lists would be copied again while their
+        // children's still exist, and that copy was the build's memory peak.
         let results = build_parallel(leaves, base, depth + 2, &ranges);
         out.reserve_exact(results.iter().map(|r| r.3.len() + 1).sum());
         for (i, (child, summary, dup, mut nodes)) in results.into_iter().enumerate() {
