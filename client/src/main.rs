@@ -235,17 +235,11 @@ fn fly_path(
 ) -> anyhow::Result<()> {
     use farfield_client::commands::fly::{FlyJob, fly, write_csv};
     use farfield_client::render::SplatStyle;
-    use farfield_client::viewer::Viewer;
     anyhow::ensure!(fps.is_finite() && fps > 0.0, "--fps must be positive");
     let out = job.out.clone().unwrap_or_default();
     std::fs::create_dir_all(&out).with_context(|| format!("creating {}", out.display()))?;
     let started = Instant::now();
-    let mut viewer = match &job.source {
-        Source::File(file) => Viewer::open_file(file)?,
-        Source::Server { url, scene } => {
-            Viewer::open_remote(url, scene, job.session, job.cache_bytes)?
-        }
-    };
+    let mut viewer = farfield_client::commands::render::open_viewer(job)?;
     let fly_job = FlyJob {
         path: farfield_client::path::CameraPath::load(path)?,
         fps,

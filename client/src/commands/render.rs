@@ -99,12 +99,7 @@ pub fn run(
 ) -> anyhow::Result<Rendered> {
     renderer.resize(job.width, job.height);
     let started = Instant::now();
-    let mut viewer = match &job.source {
-        Source::File(path) => Viewer::open_file(path)?,
-        Source::Server { url, scene } => {
-            Viewer::open_remote(url, scene, job.session, job.cache_bytes)?
-        }
-    };
+    let mut viewer = open_viewer(job)?;
     let style = SplatStyle {
         kernel: job.kernel,
         ..SplatStyle::default()
@@ -140,6 +135,17 @@ pub fn run(
         rgba: std::mem::take(&mut settle.rgba),
         frames: std::mem::take(&mut settle.frames),
     })
+}
+
+/// The viewer a job's source names: a file read whole, or a session with
+/// a memory server.
+pub fn open_viewer(job: &RenderJob) -> anyhow::Result<Viewer> {
+    match &job.source {
+        Source::File(path) => Viewer::open_file(path),
+        Source::Server { url, scene } => {
+            Viewer::open_remote(url, scene, job.session, job.cache_bytes)
+        }
+    }
 }
 
 /// The resting-camera loop: draw, ask, halve the threshold down to the
