@@ -313,3 +313,60 @@ impl Viewer {
             .collect()
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use farfield_server::build::{BuildOptions, build_spheres};
+    use farfield_server::import::{Params, load_input};
+
+    use super::*;
+
+    /// A viewer holding only page 0 of a small generated scene, and the
+    /// stored bytes of every page.
+    fn viewer() -> (Viewer, Vec<Vec<u8>>) {
+        let mut params = Params::default();
+        params.set("size", 64);
+        params.set("trees", 1);
+        let (file, _) = build_spheres(
+            load_input("gen:island", &params).unwrap(),
+            &BuildOptions::default(),
+        )
+        .unwrap();
+        let mut v = Viewer::empty(usize::MAX, None, None);
+        v.on_connected(&file.header.encode()).unwrap();
+        assert_eq!(v.on_page(&file.pages[0]), Some((0, true)));
+        (v, file.pages)
+    }
+
+    #[test]
+    fn a_page_failing_its_checksum_is_counted_never_resident_and_given_up_after_three() {
+        let (mut v, pages) = viewer();
+        let mut bad = pages[1].clone();
+        bad[40] ^= 0x20;
+        for attempt in 1..=MAX_PAGE_FAILURES {
+            assert_eq!(
+                v.on_page(&bad),
+                Some((1, false)),
+                "still acknowledged so it can be asked again"
+            );
+            assert!(!v.hierarchy().unwrap().is_resident(1));
+            assert_eq!(v.stats.pages_rejected, u64::from(attempt));
+        }
+        assert_eq!(v.failed_pages(), vec![1]);
+        // The good bytes are still taken.
+        assert_eq!(v.on_page(&pages[1]), Some((1, true)));
+    }
+
+    #[test]
+    fn a_different_scene_on_reconnect_is_an_error() {
+        let (mut v, _) = viewer();
+        let mut params = Params::default();
+        params.set("size", 32);
+        let (other, _) = build_spheres(
+            load_input("gen:island", &params).unwrap(),
+            &BuildOptions::default(),
+        )
+        .unwrap();
+        assert!(v.on_connected(&other.header.encode()).is_err());
+    }
+}
