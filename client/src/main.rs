@@ -208,8 +208,8 @@ fn render(args: RenderArgs) -> anyhow::Result<()> {
                 .map_or("no".to_owned(), |t| format!("in {t:.1} ms")),
             r.nodes_drawn,
             r.threshold_px,
-            r.bytes_received,
-            r.pages_received,
+            r.net.bytes_received,
+            r.net.pages_received,
             r.overfetch_ratio
                 .map_or("-".to_owned(), |o| format!("{o:.2}")),
             r.adapter
@@ -269,7 +269,7 @@ fn fly_path(
             "{}: {} frames, {} bytes received; per-frame stats in frames.csv",
             out.display(),
             stats.len(),
-            report.bytes_received
+            report.net.bytes_received
         );
     }
     Ok(())

@@ -34,6 +34,8 @@ pub struct NetStats {
     pub pages_cancelled: u64,
     pub pages_rejected: u64,
     pub disconnects: u64,
+    /// Reported through the render report's own `last_error`.
+    #[serde(skip)]
     pub last_error: Option<String>,
 }
 

@@ -130,7 +130,7 @@ fn streamed_images_equal_file_images_and_overfetch_is_low() {
             "{name}: blank image"
         );
         let r = &streamed.report;
-        assert!(r.time_to_first_image_ms.is_some() && r.bytes_received > 0);
+        assert!(r.time_to_first_image_ms.is_some() && r.net.bytes_received > 0);
         let overfetch = r.overfetch_ratio.unwrap();
         assert!(overfetch <= 1.5, "{name}: overfetch {overfetch}");
     }
@@ -346,7 +346,7 @@ fn a_client_survives_a_server_restart_and_finishes_correctly() {
     let done = client.join().unwrap();
     assert!(done.report.refined, "{:?}", done.report.last_error);
     assert!(
-        done.report.disconnects >= 1,
+        done.report.net.disconnects >= 1,
         "the client never noticed the restart"
     );
     let p = psnr(&done.rgba, &file.rgba);

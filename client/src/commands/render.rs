@@ -15,7 +15,7 @@ use serde::Serialize;
 use crate::args::CameraSpec;
 use crate::net::SessionOptions;
 use crate::render::{Kernel, Renderer, SplatStyle};
-use crate::viewer::Viewer;
+use crate::viewer::{NetStats, Viewer};
 
 /// When a render stops.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -60,12 +60,10 @@ pub struct RenderReport {
     pub time_to_refined_ms: Option<f64>,
     pub refined: bool,
     pub frames: u64,
-    pub bytes_received: u64,
-    pub pages_received: u64,
-    pub pages_requested: u64,
-    pub pages_cancelled: u64,
-    pub pages_rejected: u64,
-    pub disconnects: u64,
+    /// The session's counters (bytes and pages received, requested,
+    /// cancelled, rejected; disconnects), flattened into the JSON.
+    #[serde(flatten)]
+    pub net: NetStats,
     pub nodes_drawn: usize,
     pub nodes_visited: u64,
     pub threshold_px: f64,
@@ -296,12 +294,7 @@ impl Settle {
             time_to_refined_ms: self.time_to_refined_ms,
             refined: self.time_to_refined_ms.is_some(),
             frames: self.frame_count,
-            bytes_received: stats.bytes_received,
-            pages_received: stats.pages_received,
-            pages_requested: stats.pages_requested,
-            pages_cancelled: stats.pages_cancelled,
-            pages_rejected: stats.pages_rejected,
-            disconnects: stats.disconnects,
+            net: stats.clone(),
             nodes_drawn: self.cut.splats.len(),
             nodes_visited: self.cut.visited,
             threshold_px: self.threshold,

@@ -118,16 +118,21 @@ mod tests {
         assert_eq!(out[0].normal, [0; 4]);
     }
 
-    #[test]
-    fn near_plane_follows_the_depth_range_and_drops_splats_behind() {
-        let camera = Camera {
+    /// A 64x64 camera at the origin looking down +X, +Z up.
+    fn camera_down_x() -> Camera {
+        Camera {
             eye: DVec3::ZERO,
             target: DVec3::X,
             up: DVec3::Z,
             fov_y_deg: 60.0,
             width: 64,
             height: 64,
-        };
+        }
+    }
+
+    #[test]
+    fn near_plane_follows_the_depth_range_and_drops_splats_behind() {
+        let camera = camera_down_x();
         let view = camera.view(1.0);
         let mut out = Vec::new();
         let near = pack(
@@ -151,14 +156,7 @@ mod tests {
 
     #[test]
     fn normals_and_colors_are_packed() {
-        let camera = Camera {
-            eye: DVec3::ZERO,
-            target: DVec3::X,
-            up: DVec3::Z,
-            fov_y_deg: 60.0,
-            width: 64,
-            height: 64,
-        };
+        let camera = camera_down_x();
         let mut out = Vec::new();
         let s = Splat {
             normal: Some(Vec3::new(0.0, -1.0, 0.5)),
