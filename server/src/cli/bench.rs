@@ -24,6 +24,8 @@ pub fn build(
     let params = Params::parse(params).map_err(anyhow::Error::msg)?;
     let rss_start = memory::current_rss_bytes();
     let (mut total, mut build_only) = (Vec::new(), Vec::new());
+    // Seconds of each step: import, leaves, tree, layout.
+    let mut steps: [Vec<f64>; 4] = Default::default();
     let mut vertices = 0;
     let mut nodes = 0;
     for _ in 0..repeats.max(1) {
@@ -33,11 +35,21 @@ pub fn build(
         let build_started = Instant::now();
         let (file, stats) = build_spheres(scene, &BuildOptions::default())?;
         nodes = stats.nodes;
+        let step_seconds = [
+            build_started.duration_since(started).as_secs_f64(),
+            stats.seconds_leaves,
+            stats.seconds_tree,
+            stats.seconds_layout,
+        ];
+        for (samples, s) in steps.iter_mut().zip(step_seconds) {
+            samples.push(s);
+        }
         build_only.push(build_started.elapsed().as_secs_f64());
         total.push(started.elapsed().as_secs_f64());
         drop(file);
     }
     let (t, b) = (median(&mut total), median(&mut build_only));
+    let [import, leaves, tree, layout] = steps.map(|mut s| median(&mut s));
     let peak = memory::peak_rss_bytes();
     let json = json!({
         "inputs": inputs,
@@ -46,6 +58,7 @@ pub fn build(
         "nodes": nodes,
         "median_seconds_import_and_build": t,
         "median_seconds_build": b,
+        "median_seconds_by_step": {"import": import, "leaves": leaves, "tree": tree, "layout": layout},
         "vertices_per_second_import_and_build": vertices as f64 / t,
         "vertices_per_second_build": vertices as f64 / b,
         "threads": rayon::current_num_threads(),
@@ -55,7 +68,7 @@ pub fn build(
         "peak_rss_above_start_bytes_per_vertex": peak.zip(rss_start).map(|(p, s)| p.saturating_sub(s) as f64 / vertices as f64),
     });
     let text = format!(
-        "{}: {} vertices, median {:.3} s import+build ({:.2} M vertices/s), {:.3} s build ({:.2} M vertices/s), peak RSS {} MiB ({:.1} bytes/vertex)",
+        "{}: {} vertices, median {:.3} s import+build ({:.2} M vertices/s), {:.3} s build ({:.2} M vertices/s), peak RSS {} MiB ({:.1} bytes/vertex); steps (ms): import {:.1}, leaves {:.1}, tree {:.1}, layout {:.1}",
         inputs.join(" "),
         vertices,
         t,
@@ -63,7 +76,11 @@ pub fn build(
         b,
         vertices as f64 / b / 1e6,
         peak.unwrap_or(0) / (1 << 20),
-        peak.unwrap_or(0) as f64 / vertices as f64
+        peak.unwrap_or(0) as f64 / vertices as f64,
+        import * 1e3,
+        leaves * 1e3,
+        tree * 1e3,
+        layout * 1e3,
     );
     Ok(Report {
         json,

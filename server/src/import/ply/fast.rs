@@ -1,0 +1,121 @@
+//! Fast paths for binary bodies: a whole element decoded straight from the
+//! bytes, with no per-value dispatch through [`Values`](super::Values).
+//!
+//! They cover the common cases (a vertex element of scalars only, a face or
+//! strip element whose only property is its index list) and give up with
+//! `None` on anything else, including a malformed body: the caller then
+//! reads the element value by value, which names the instance that failed.
+//! So these paths never decide what an error says.
+
+use super::{Element, Kind, Polygon, Scalar, is_u32};
+
+/// Where each property of an all-scalar element lies in its record.
+pub(super) struct FixedLayout {
+    /// (byte offset in the record, type) per property, in property order.
+    fields: Vec<(usize, Scalar)>,
+    /// Bytes per record.
+    pub stride: usize,
+}
+
+impl FixedLayout {
+    /// The layout of `element`, or `None` when it has a list property.
+    pub fn of(element: &Element) -> Option<Self> {
+        let mut fields = Vec::with_capacity(element.props.len());
+        let mut offset = 0;
+        for prop in &element.props {
+            let Kind::Scalar(ty) = prop.kind else {
+                return None;
+            };
+            fields.push((offset, ty));
+            offset += ty.size();
+        }
+        (offset > 0).then_some(Self {
+            fields,
+            stride: offset,
+        })
+    }
+
+    /// The first `count` records of `bytes`, or `None` if it is too short.
+    pub fn records<'b>(
+        &self,
+        bytes: &'b [u8],
+        count: u64,
+    ) -> Option<std::slice::ChunksExact<'b, u8>> {
+        let len = usize::try_from(count).ok()?.checked_mul(self.stride)?;
+        Some(bytes.get(..len)?.chunks_exact(self.stride))
+    }
+
+    /// A reader of property `i` from records of [`FixedLayout::records`].
+    pub fn reader(&self, i: usize, big: bool) -> impl Fn(&[u8]) -> f64 + use<> {
+        let (offset, ty) = self.fields[i];
+        let decode = decoder(ty, big);
+        move |record: &[u8]| decode(&record[offset..])
+    }
+}
+
+/// A list property's types, for [`List::polygons`].
+pub(super) struct List {
+    pub count: Scalar,
+    pub item: Scalar,
+    pub big: bool,
+}
+
+impl List {
+    /// Reads `instances` index lists from `bytes` into `tris`; returns the
+    /// bytes read, or `None` (and `tris` as it was) when anything is amiss.
+    pub fn polygons(
+        &self,
+        bytes: &[u8],
+        instances: u64,
+        polygon: &mut Polygon,
+        tris: &mut Vec<[u32; 3]>,
+    ) -> Option<usize> {
+        let before = tris.len();
+        let mut items = Vec::new();
+        let mut pos = 0;
+        let (count_size, item_size) = (self.count.size(), self.item.size());
+        let (count_of, item_of) = (decoder(self.count, self.big), decoder(self.item, self.big));
+        for _ in 0..instances {
+            let ok = (|| {
+                let n = count_of(bytes.get(pos..pos + count_size)?);
+                if !is_u32(n) {
+                    return None;
+                }
+                pos += count_size;
+                let end = pos.checked_add((n as usize).checked_mul(item_size)?)?;
+                let list = bytes.get(pos..end)?;
+                items.clear();
+                items.extend(list.chunks_exact(item_size).map(item_of));
+                pos = end;
+                polygon.add(&items, tris).ok()
+            })();
+            if ok.is_none() {
+                tris.truncate(before);
+                return None;
+            }
+        }
+        Some(pos)
+    }
+}
+
+/// A decoder of one value of type `ty` from the front of a slice at least
+/// `ty.size()` long. One function per type and byte order, chosen once per
+/// property: decoding through a `match` per value made the branch on the
+/// type the import's hottest instruction.
+fn decoder(ty: Scalar, big: bool) -> fn(&[u8]) -> f64 {
+    macro_rules! decoders {
+        ($($variant:ident => $t:ty),*) => {
+            match (ty, big) {
+                $(
+                    (Scalar::$variant, false) => |b: &[u8]| {
+                        f64::from(<$t>::from_le_bytes(b[..size_of::<$t>()].try_into().unwrap_or_default()))
+                    },
+                    (Scalar::$variant, true) => |b: &[u8]| {
+                        f64::from(<$t>::from_be_bytes(b[..size_of::<$t>()].try_into().unwrap_or_default()))
+                    },
+                )*
+            }
+        };
+    }
+    decoders!(I8 => i8, U8 => u8, I16 => i16, U16 => u16, I32 => i32, U32 => u32, F32 => f32, F64 => f64)
+}
