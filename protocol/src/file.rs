@@ -104,6 +104,9 @@ pub struct FileHeader {
     pub attributes: AttributeFlags,
     /// Bytes of one node record in a page.
     pub node_bytes: u32,
+    /// Cubes: color-cubes per cell edge (1, or k for k x k x k clusters,
+    /// 1995 report section 4.2). Spheres: 0.
+    pub cluster: u8,
     /// Number of levels (the root alone is one level).
     pub levels: u32,
     pub nodes: u64,
@@ -133,7 +136,7 @@ impl FileHeader {
         put_u32(&mut out, Self::encoded_len(self.pages.len()) as u32);
         out.push(self.kind as u8);
         out.push(self.attributes.to_bits());
-        out.extend_from_slice(&[0, 0]);
+        out.extend_from_slice(&[self.cluster, 0]);
         put_u32(&mut out, self.node_bytes);
         put_u32(&mut out, self.levels);
         put_u32(&mut out, self.pages.len() as u32);
@@ -208,7 +211,8 @@ impl FileHeader {
         r.bytes(16)?;
         let kind = HierarchyKind::from_u8(r.u8()?)?;
         let attributes = AttributeFlags::from_bits(r.u8()?)?;
-        r.bytes(2)?;
+        let cluster = r.u8()?;
+        r.u8()?;
         let node_bytes = r.u32()?;
         let levels = r.u32()?;
         let page_count = r.u32()? as usize;
@@ -244,6 +248,7 @@ impl FileHeader {
             kind,
             attributes,
             node_bytes,
+            cluster,
             levels,
             nodes,
             leaves,
@@ -269,8 +274,31 @@ impl FileHeader {
         if !(self.bounds_min.is_finite() && self.bounds_max.is_finite()) {
             return bad("bounds are not finite".into());
         }
-        if self.node_bytes == 0 || self.node_bytes > 8 {
-            return bad(format!("node size {} is out of range", self.node_bytes));
+        match self.kind {
+            HierarchyKind::Spheres if self.node_bytes == 0 || self.node_bytes > 8 => {
+                return bad(format!("node size {} is out of range", self.node_bytes));
+            }
+            HierarchyKind::Spheres if self.cluster != 0 => {
+                return bad(format!(
+                    "a sphere hierarchy has cluster size {}",
+                    self.cluster
+                ));
+            }
+            HierarchyKind::Cubes if self.node_bytes != crate::cube_codec::RECORD_BYTES as u32 => {
+                return bad(format!(
+                    "cube node size {} is not {}",
+                    self.node_bytes,
+                    crate::cube_codec::RECORD_BYTES
+                ));
+            }
+            HierarchyKind::Cubes if !crate::cube_codec::valid_cluster(self.cluster) => {
+                return bad(format!(
+                    "cluster size {} is not a power of two up to {}",
+                    self.cluster,
+                    crate::cube_codec::MAX_CLUSTER
+                ));
+            }
+            _ => {}
         }
         let mut next = 0u64;
         for (i, p) in self.pages.iter().enumerate() {

@@ -10,6 +10,7 @@
 use glam::{DVec3, Vec3};
 
 use crate::FormatError;
+use crate::cube_codec::{self, Channels, CubeRecord, Payload};
 use crate::file::{FileHeader, HierarchyKind};
 use crate::page::{Page, PageHeader};
 use crate::sphere_codec::{self, NodeLayout, NodeRecord};
@@ -26,6 +27,28 @@ pub struct ResidentPage {
     child_offset: Vec<u32>,
     /// Bytes of the page as received (for cache accounting).
     pub byte_len: usize,
+    /// Color-cube pages: each cell's record and decoded payload.
+    pub cubes: Option<CubePage>,
+}
+
+/// The cells of a resident color-cube page, decoded once on arrival.
+#[derive(Debug, Clone, Default)]
+pub struct CubePage {
+    pub records: Vec<CubeRecord>,
+    /// Payloads of the cells that have one.
+    pub payloads: Vec<Payload>,
+    /// For each cell, its index in `payloads` ([`NO_PAYLOAD`] for none).
+    pub payload_of: Vec<u32>,
+}
+
+/// [`CubePage::payload_of`] of a cell without payload.
+pub const NO_PAYLOAD: u32 = u32::MAX;
+
+impl CubePage {
+    pub fn payload(&self, local: usize) -> Option<&Payload> {
+        let i = *self.payload_of.get(local)?;
+        self.payloads.get(i as usize)
+    }
 }
 
 /// A node decoded to world units: what the reference decoder yields.
@@ -55,17 +78,11 @@ pub struct Hierarchy {
 impl Hierarchy {
     /// An empty hierarchy: nothing resident yet.
     pub fn new(header: FileHeader) -> Result<Self, FormatError> {
-        if header.kind != HierarchyKind::Spheres {
-            return Err(FormatError::BadHeader(format!(
-                "{} hierarchies are not decoded by this build",
-                header.kind.name()
-            )));
-        }
         let layout = NodeLayout {
             normals: header.attributes.normals,
             color: header.attributes.color,
         };
-        if layout.bytes() != header.node_bytes {
+        if header.kind == HierarchyKind::Spheres && layout.bytes() != header.node_bytes {
             return Err(FormatError::BadHeader(format!(
                 "node size {} does not match the attributes ({} expected)",
                 header.node_bytes,
@@ -92,7 +109,10 @@ impl Hierarchy {
                 page: index,
                 message: format!("no such page ({} pages)", self.header.pages.len()),
             })?;
-        let page = Page::parse(bytes, index, self.header.node_bytes)?;
+        let page = match self.header.kind {
+            HierarchyKind::Spheres => Page::parse(bytes, index, self.header.node_bytes)?,
+            HierarchyKind::Cubes => Page::parse_with_payload(bytes, index, self.header.node_bytes)?,
+        };
         let h = page.header;
         if h.first_node != entry.first_node
             || h.node_count != entry.node_count
@@ -103,22 +123,19 @@ impl Hierarchy {
                 message: "page disagrees with the directory".into(),
             });
         }
-        let node_bytes = self.header.node_bytes as usize;
+        let (child_counts, cubes) = match self.header.kind {
+            HierarchyKind::Spheres => (self.sphere_child_counts(&page)?, None),
+            HierarchyKind::Cubes => {
+                let cubes = self.cube_page(&page)?;
+                let counts = cubes.records.iter().map(CubeRecord::child_count).collect();
+                (counts, Some(cubes))
+            }
+        };
         let mut child_offset = Vec::with_capacity(h.node_count as usize);
         let mut sum = 0u64;
-        let sphere_codes = sphere_codec::sphere_table().len();
-        for i in 0..h.node_count as usize {
-            let rec = NodeRecord::unpack(page.record(i, node_bytes), self.layout);
-            if usize::from(rec.sphere) >= sphere_codes
-                || u32::from(rec.normal) >= sphere_codec::NORMAL_CODES
-            {
-                return Err(FormatError::BadPage {
-                    page: index,
-                    message: format!("node {i} has an invalid code"),
-                });
-            }
+        for count in child_counts {
             child_offset.push(sum as u32);
-            sum += rec.children.get() as u64;
+            sum += u64::from(count);
         }
         // Every child must be a real node after its parent: this is what
         // keeps traversal of a corrupt-but-checksummed page in bounds.
@@ -138,7 +155,10 @@ impl Hierarchy {
         self.resident_bytes += bytes.len();
         self.pages[index as usize] = Some(ResidentPage {
             header: h,
-            records: {
+            // Cube records live decoded in `cubes`.
+            records: if cubes.is_some() {
+                Vec::new()
+            } else {
                 let mut r = Vec::with_capacity(page.records.len() + 8);
                 r.extend_from_slice(page.records);
                 r.extend_from_slice(&[0; 8]);
@@ -146,8 +166,75 @@ impl Hierarchy {
             },
             child_offset,
             byte_len: bytes.len(),
+            cubes,
         });
         Ok(())
+    }
+
+    /// Child counts of a sphere page's nodes, checking every code.
+    fn sphere_child_counts(&self, page: &Page) -> Result<Vec<u32>, FormatError> {
+        let node_bytes = self.header.node_bytes as usize;
+        let sphere_codes = sphere_codec::sphere_table().len();
+        (0..page.header.node_count as usize)
+            .map(|i| {
+                let rec = NodeRecord::unpack(page.record(i, node_bytes), self.layout);
+                if usize::from(rec.sphere) >= sphere_codes
+                    || u32::from(rec.normal) >= sphere_codec::NORMAL_CODES
+                {
+                    return Err(FormatError::BadPage {
+                        page: page.header.index,
+                        message: format!("node {i} has an invalid code"),
+                    });
+                }
+                Ok(rec.children.get() as u32)
+            })
+            .collect()
+    }
+
+    /// Decodes a cube page's records and payloads; every payload byte must
+    /// belong to a cell and decode cleanly.
+    fn cube_page(&self, page: &Page) -> Result<CubePage, FormatError> {
+        let bad = |message: String| FormatError::BadPage {
+            page: page.header.index,
+            message,
+        };
+        let channels = Channels {
+            normals: self.header.attributes.normals,
+            color: self.header.attributes.color,
+        };
+        let mut cubes = CubePage::default();
+        let mut at = 0usize;
+        for (i, bytes) in page
+            .records
+            .chunks_exact(cube_codec::RECORD_BYTES)
+            .enumerate()
+        {
+            let rec =
+                CubeRecord::unpack(bytes).ok_or_else(|| bad(format!("cell {i}: bad record")))?;
+            let len = rec.payload_bytes as usize;
+            let slice = page
+                .payload
+                .get(at..at.saturating_add(len))
+                .ok_or_else(|| bad(format!("cell {i}: payload runs past the page")))?;
+            at += len;
+            if len > 0 {
+                let payload =
+                    cube_codec::decode_payload(&rec, slice, self.header.cluster, channels)
+                        .map_err(|e| bad(format!("cell {i}: {e}")))?;
+                cubes.payload_of.push(cubes.payloads.len() as u32);
+                cubes.payloads.push(payload);
+            } else {
+                cubes.payload_of.push(NO_PAYLOAD);
+            }
+            cubes.records.push(rec);
+        }
+        if at != page.payload.len() {
+            return Err(bad(format!(
+                "{} payload bytes belong to no cell",
+                page.payload.len() - at
+            )));
+        }
+        Ok(cubes)
     }
 
     /// Drops a page (cache eviction). Its descendants stay resident but are
@@ -198,6 +285,9 @@ impl Hierarchy {
     /// order: the reference decoder that tests compare against.
     pub fn decode_all(&self) -> Vec<DecodedNode> {
         let mut out = Vec::new();
+        if self.header.kind != HierarchyKind::Spheres {
+            return out;
+        }
         let Some(root_page) = self.page(0) else {
             return out;
         };

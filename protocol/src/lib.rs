@@ -10,6 +10,12 @@
 //!   [`page::Page`] view a decoder reads nodes from.
 //! - [`sphere_codec`]: QSplat's quantized node: position and radius relative
 //!   to the parent (13 bits), normal (14 bits), cone (2 bits), 5-6-5 color.
+//! - [`cube_codec`]: the color-cube octree's cell record, clustered
+//!   sub-cubes and cell-relative leaf geometry (Chamberlain et al.).
+//! - [`cube_traverse`]: the cube octree's `Render(cell)`: cube faces where
+//!   a cell is smaller than `eps` pixels, leaf triangles elsewhere.
+//! - [`shading`]: the fixed light the cube builder bakes in and the
+//!   client's geometry pass repeats; [`octahedral`]: 32-bit unit normals.
 //! - [`camera`]: a view with f64 frustum planes and projected-size math.
 //! - [`traverse`]: the reference traversal that turns resident pages and a
 //!   camera into a cut (splats to draw) and a list of wanted pages.
@@ -21,10 +27,14 @@
 
 pub mod camera;
 pub mod codec;
+pub mod cube_codec;
+pub mod cube_traverse;
 pub mod file;
 pub mod hierarchy;
 pub mod messages;
+pub mod octahedral;
 pub mod page;
+pub mod shading;
 pub mod sphere_codec;
 pub mod traverse;
 

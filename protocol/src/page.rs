@@ -42,9 +42,21 @@ impl PageHeader {
 /// Builds a page's bytes from its header and node records; returns the
 /// bytes and their checksum (also stored in the last four bytes).
 pub fn encode_page(header: &PageHeader, records: &[u8]) -> (Vec<u8>, u32) {
-    let mut out = Vec::with_capacity(PAGE_HEADER_BYTES + records.len() + PAGE_CHECKSUM_BYTES);
+    encode_page_with_payload(header, records, &[])
+}
+
+/// A page whose records are followed by a payload section (the color-cube
+/// octree's sub-cubes and leaf geometry, in node order).
+pub fn encode_page_with_payload(
+    header: &PageHeader,
+    records: &[u8],
+    payload: &[u8],
+) -> (Vec<u8>, u32) {
+    let mut out =
+        Vec::with_capacity(PAGE_HEADER_BYTES + records.len() + payload.len() + PAGE_CHECKSUM_BYTES);
     header.encode_into(&mut out);
     out.extend_from_slice(records);
+    out.extend_from_slice(payload);
     let crc = crc32fast::hash(&out);
     out.extend_from_slice(&crc.to_le_bytes());
     (out, crc)
@@ -55,11 +67,34 @@ pub fn encode_page(header: &PageHeader, records: &[u8]) -> (Vec<u8>, u32) {
 pub struct Page<'a> {
     pub header: PageHeader,
     pub records: &'a [u8],
+    /// Bytes after the records: empty for spheres, cells' payloads for cubes.
+    pub payload: &'a [u8],
 }
 
 impl<'a> Page<'a> {
     /// Verifies and parses page `index` whose records are `node_bytes` each.
+    /// A page of records only (spheres).
     pub fn parse(bytes: &'a [u8], index: u32, node_bytes: u32) -> Result<Self, FormatError> {
+        let page = Self::parse_with_payload(bytes, index, node_bytes)?;
+        if !page.payload.is_empty() {
+            return Err(FormatError::BadPage {
+                page: index,
+                message: format!(
+                    "{} record bytes do not hold {} nodes of {node_bytes} bytes",
+                    page.records.len() + page.payload.len(),
+                    page.header.node_count
+                ),
+            });
+        }
+        Ok(page)
+    }
+
+    /// A page whose records may be followed by a payload (cubes).
+    pub fn parse_with_payload(
+        bytes: &'a [u8],
+        index: u32,
+        node_bytes: u32,
+    ) -> Result<Self, FormatError> {
         let min = PAGE_HEADER_BYTES + PAGE_CHECKSUM_BYTES;
         if bytes.len() < min {
             return Err(FormatError::BadPage {
@@ -100,18 +135,24 @@ impl<'a> Page<'a> {
                 message: format!("page says it is page {}", header.index),
             });
         }
-        let records = &body[PAGE_HEADER_BYTES..];
-        if records.len() as u64 != u64::from(header.node_count) * u64::from(node_bytes) {
+        let rest = &body[PAGE_HEADER_BYTES..];
+        let record_bytes = u64::from(header.node_count) * u64::from(node_bytes);
+        if (rest.len() as u64) < record_bytes {
             return Err(FormatError::BadPage {
                 page: index,
                 message: format!(
                     "{} record bytes do not hold {} nodes of {node_bytes} bytes",
-                    records.len(),
+                    rest.len(),
                     header.node_count
                 ),
             });
         }
-        Ok(Self { header, records })
+        let (records, payload) = rest.split_at(record_bytes as usize);
+        Ok(Self {
+            header,
+            records,
+            payload,
+        })
     }
 
     /// The raw record of the `i`th node in the page, as a little-endian u64.

@@ -138,6 +138,7 @@ pub fn lay_out(mut tree: Tree, input: LayoutInput) -> PagedFile {
         })
         .collect();
     let header = FileHeader {
+        cluster: 0,
         kind: HierarchyKind::Spheres,
         attributes: AttributeFlags {
             color: input.layout.color,

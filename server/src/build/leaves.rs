@@ -18,6 +18,8 @@
 use glam::{DAffine3, DVec3, Vec3};
 use rayon::prelude::*;
 
+pub use farfield_protocol::octahedral::{pack_normal, unpack_normal};
+
 use crate::scene::{Geometry, Primitives, Rgb8, Scene};
 
 /// Color given to geometry without colors in a scene where others have them.
@@ -111,7 +113,7 @@ fn place(local: &[Leaf], world_from_local: DAffine3, out: &mut [Leaf]) {
 /// The largest factor by which a transform can lengthen a vector: the
 /// largest column length when the columns are orthogonal (rotation and
 /// scale), else the Frobenius norm, an upper bound.
-fn max_stretch(t: DAffine3) -> f64 {
+pub(crate) fn max_stretch(t: DAffine3) -> f64 {
     let [x, y, z] = [t.matrix3.x_axis, t.matrix3.y_axis, t.matrix3.z_axis];
     let longest = x.length().max(y.length()).max(z.length());
     let orthogonal = [x.dot(y), y.dot(z), z.dot(x)]
@@ -295,34 +297,6 @@ pub fn cone_to_u8(angle: f64) -> u8 {
 /// The cone half-angle a leaf's u8 stands for, in radians.
 pub fn cone_from_u8(cone: u8) -> f64 {
     f64::from(cone) / 255.0 * std::f64::consts::PI
-}
-
-/// Octahedral packing of a unit vector into two 16-bit snorms; error about
-/// 3e-5 radians, far below the 14-bit file normals'. Zero packs as +Z.
-pub fn pack_normal(n: Vec3) -> u32 {
-    let n = n.try_normalize().unwrap_or(Vec3::Z);
-    let l1 = n.x.abs() + n.y.abs() + n.z.abs();
-    let (mut x, mut y) = (n.x / l1, n.y / l1);
-    if n.z < 0.0 {
-        let (ox, oy) = (x, y);
-        x = (1.0 - oy.abs()) * ox.signum();
-        y = (1.0 - ox.abs()) * oy.signum();
-    }
-    let q = |v: f32| ((v.clamp(-1.0, 1.0) * 32767.0).round() as i16) as u16;
-    u32::from(q(x)) | u32::from(q(y)) << 16
-}
-
-/// Inverse of [`pack_normal`].
-pub fn unpack_normal(p: u32) -> Vec3 {
-    let x = f32::from(p as u16 as i16) / 32767.0;
-    let y = f32::from((p >> 16) as u16 as i16) / 32767.0;
-    let z = 1.0 - x.abs() - y.abs();
-    let (x, y) = if z < 0.0 {
-        ((1.0 - y.abs()) * x.signum(), (1.0 - x.abs()) * y.signum())
-    } else {
-        (x, y)
-    };
-    Vec3::new(x, y, z).try_normalize().unwrap_or(Vec3::Z)
 }
 
 #[cfg(test)]

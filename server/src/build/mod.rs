@@ -1,4 +1,5 @@
-//! Builders: a [`Scene`] in, a [`PagedFile`] out.
+//! Builders: a [`Scene`] in, a [`PagedFile`] out. [`cubes`] builds the
+//! color-cube octree; the rest of this module is the sphere builder.
 //!
 //! The sphere builder runs in four steps, one module each:
 //! [`leaves`] (a sized, oriented sphere per vertex; [`knn`] for point
@@ -6,6 +7,7 @@
 //! [`layout`] (top-down quantization and breadth-first pages). Writing the
 //! file is the [`store`](crate::store)'s job.
 
+pub mod cubes;
 pub mod knn;
 pub mod layout;
 pub mod leaves;
@@ -67,6 +69,8 @@ pub enum BuildError {
     Empty,
     #[error("the scene has {0} vertices; this format holds at most 2^31 - 1 leaves")]
     TooLarge(u64),
+    #[error("{0}")]
+    Invalid(String),
 }
 
 /// Builds the QSplat sphere hierarchy of a scene, consuming it (each

@@ -7,7 +7,8 @@ use anyhow::Context;
 use indicatif::{ProgressBar, ProgressStyle};
 use serde_json::json;
 
-use super::{BuildArgs, Report, memory};
+use super::{BuildArgs, Kind, Report, memory};
+use crate::build::cubes::{CubeOptions, build_cubes};
 use crate::build::{BuildOptions, build_spheres};
 use crate::import::{Params, load_input};
 use crate::scene::Scene;
@@ -35,38 +36,60 @@ pub fn run(args: &BuildArgs) -> anyhow::Result<Report> {
         scene.instanced_vertex_count()
     ));
     let build_started = Instant::now();
-    let options = BuildOptions {
-        page_bytes: args.page_bytes,
-        ..BuildOptions::default()
+    let (file, stats, nodes, kind) = match args.kind {
+        Kind::Spheres => {
+            let options = BuildOptions {
+                page_bytes: args.page_bytes.unwrap_or(crate::build::DEFAULT_PAGE_BYTES),
+                ..BuildOptions::default()
+            };
+            let (file, stats) = build_spheres(scene, &options)
+                .with_context(|| format!("building {}", args.inputs.join(" ")))?;
+            let nodes = stats.nodes;
+            (file, serde_json::to_value(stats)?, nodes, "spheres")
+        }
+        Kind::Cubes => {
+            let options = CubeOptions {
+                samples: args.face_samples,
+                cluster: args.cluster,
+                max_depth: args.max_depth,
+                composite: args.composite,
+                page_bytes: args
+                    .page_bytes
+                    .unwrap_or(crate::build::cubes::DEFAULT_CUBE_PAGE_BYTES),
+            };
+            let (file, stats) = build_cubes(scene, &options)
+                .with_context(|| format!("building {}", args.inputs.join(" ")))?;
+            let nodes = stats.nodes;
+            (file, serde_json::to_value(stats)?, nodes, "cubes")
+        }
     };
-    let (file, stats) = build_spheres(scene, &options)
-        .with_context(|| format!("building {}", args.inputs.join(" ")))?;
     let seconds_build = build_started.elapsed().as_secs_f64();
     progress.set_message(format!("writing {}", args.out.display()));
     let bytes = write_atomic(&args.out, &file)?;
     progress.finish_and_clear();
     let seconds = started.elapsed().as_secs_f64();
+    let h = &file.header;
     let json = json!({
         "out": args.out,
-        "kind": "spheres",
+        "kind": kind,
         "file_bytes": bytes,
-        "bytes_per_node": bytes as f64 / stats.nodes as f64,
+        "bytes_per_node": bytes as f64 / nodes as f64,
         "seconds": seconds,
         "seconds_import": seconds_import,
         "seconds_build": seconds_build,
-        "vertices_per_second": stats.input_vertices as f64 / seconds,
+        "vertices_per_second": h.input_vertices as f64 / seconds,
         "peak_rss_bytes": memory::peak_rss_bytes(),
         "stats": stats,
     });
     let text = format!(
-        "{}: {} nodes ({} leaves, {} levels) in {} pages, {} bytes ({:.2} bytes/node), {:.2} s",
+        "{}: {kind} hierarchy, {} nodes ({} leaves, {} levels) in {} pages, {} bytes ({:.2} bytes/node), {:.2} s",
         args.out.display(),
-        stats.nodes,
-        stats.leaves,
-        stats.levels,
-        stats.pages,
+        h.nodes,
+        h.leaves,
+        h.levels,
+        h.pages.len(),
         bytes,
-        bytes as f64 / stats.nodes as f64,
+        bytes as f64 / nodes as f64,
         seconds
     );
     Ok(Report {

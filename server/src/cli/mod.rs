@@ -46,12 +46,37 @@ pub struct BuildArgs {
     /// Generator parameters, `key=value` (e.g. trees=64, seed=3).
     #[arg(long = "param", value_name = "KEY=VALUE")]
     pub params: Vec<String>,
-    /// Upper bound on a page's bytes.
-    #[arg(long, default_value_t = crate::build::DEFAULT_PAGE_BYTES)]
-    pub page_bytes: usize,
+    /// Upper bound on a page's bytes (default: 16 KiB for spheres, 64 KiB
+    /// for cubes).
+    #[arg(long)]
+    pub page_bytes: Option<usize>,
+    /// Which hierarchy: QSplat's bounding spheres, or the color-cube octree
+    /// of Chamberlain et al. with the geometry at its leaves.
+    #[arg(long, value_enum, default_value_t = Kind::Spheres)]
+    pub kind: Kind,
+    /// Cubes: samples per cube-face edge (16 = 4 x 4 pixels of 4 x 4 samples).
+    #[arg(long, default_value_t = 16)]
+    pub face_samples: usize,
+    /// Cubes: k x k x k color-cubes per cell (1, 2, 4, 8 or 16).
+    #[arg(long, default_value_t = 1)]
+    pub cluster: u8,
+    /// Cubes: deepest octree level.
+    #[arg(long, default_value_t = 32)]
+    pub max_depth: u32,
+    /// Cubes: how children's faces combine, `disjoint` (1995: opaque stays
+    /// opaque) or `over` (1996).
+    #[arg(long, default_value = "disjoint")]
+    pub composite: crate::build::cubes::Composite,
     /// Print one JSON summary object on stdout and no progress bar.
     #[arg(long)]
     pub json: bool,
+}
+
+/// The hierarchy kinds `build` makes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum Kind {
+    Spheres,
+    Cubes,
 }
 
 #[derive(Debug, clap::Args)]

@@ -10,7 +10,7 @@ use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
 
 use farfield_protocol::FormatError;
-use farfield_protocol::file::FileHeader;
+use farfield_protocol::file::{FileHeader, HierarchyKind};
 use farfield_protocol::page::Page;
 use memmap2::Mmap;
 
@@ -133,7 +133,12 @@ impl SceneFile {
             page: index as u32,
             message: "outside the file".into(),
         })?;
-        let page = Page::parse(bytes, index as u32, self.header.node_bytes)?;
+        let page = match self.header.kind {
+            HierarchyKind::Spheres => Page::parse(bytes, index as u32, self.header.node_bytes)?,
+            HierarchyKind::Cubes => {
+                Page::parse_with_payload(bytes, index as u32, self.header.node_bytes)?
+            }
+        };
         if page.header.first_node != self.header.pages[index].first_node {
             return Err(FormatError::BadPage {
                 page: index as u32,
