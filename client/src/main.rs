@@ -123,9 +123,20 @@ struct RenderArgs {
     frames: Option<u64>,
     #[arg(long)]
     ms: Option<f64>,
-    /// Final projected-size threshold in pixels.
+    /// Final projected-size threshold in pixels (spheres: splat size;
+    /// cubes: eps, see --eps).
     #[arg(long, default_value_t = 1.0)]
     threshold: f64,
+    /// Cube hierarchies: draw a cell as its color-cube when its projected
+    /// edge is under this many pixels; 0 draws the geometry everywhere (the
+    /// reference). The same setting as --threshold.
+    #[arg(long, conflicts_with = "threshold")]
+    eps: Option<f64>,
+    /// Cube hierarchies: `alpha` (coverage is transparency, 1996) or
+    /// `threshold[:T]` (faces covered less than T, default 0.5, are
+    /// dropped, the rest drawn opaque, 1995).
+    #[arg(long, default_value = "alpha")]
+    coverage: farfield_client::render::Coverage,
     #[arg(long, value_enum, default_value = "square")]
     kernel: KernelArg,
     /// Client page cache, MiB.
@@ -152,9 +163,10 @@ fn render(args: RenderArgs) -> anyhow::Result<()> {
         (_, Some(ms)) => Until::Millis(ms),
         _ => Until::Refined,
     };
+    let threshold = args.eps.unwrap_or(args.threshold);
     anyhow::ensure!(
-        args.threshold.is_finite() && args.threshold >= 0.0,
-        "--threshold must be a non-negative number"
+        threshold.is_finite() && threshold >= 0.0,
+        "--threshold and --eps must be non-negative numbers"
     );
     anyhow::ensure!(
         args.timeout_s.is_finite() && args.timeout_s > 0.0,
@@ -167,11 +179,12 @@ fn render(args: RenderArgs) -> anyhow::Result<()> {
         height: args.size.1,
         out: Some(args.out),
         until,
-        threshold_px: args.threshold,
+        threshold_px: threshold,
         kernel: match args.kernel {
             KernelArg::Square => Kernel::Square,
             KernelArg::Round => Kernel::Round,
         },
+        coverage: args.coverage,
         session: SessionOptions {
             allow_push: args.push,
             ..SessionOptions::default()
@@ -249,6 +262,7 @@ fn fly_path(
         target_frame_ms: 100.0,
         style: SplatStyle {
             kernel: job.kernel,
+            coverage: job.coverage,
             ..SplatStyle::default()
         },
         frames_dir: write_frames.then(|| out.join("frames")),

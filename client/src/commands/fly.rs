@@ -12,10 +12,9 @@ use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
 use anyhow::Context;
-use farfield_protocol::traverse::Cut;
 use serde::Serialize;
 
-use super::render::{FrameTimes, Settle, Until, draw_frame};
+use super::render::{Cuts, FrameTimes, Settle, Until, draw_frame};
 use crate::path::CameraPath;
 use crate::render::{Renderer, SplatStyle};
 use crate::viewer::Viewer;
@@ -108,7 +107,7 @@ pub fn fly(
     let mut threshold = (final_threshold * 4.0).max(2.0);
     let frames = (job.path.duration() * job.fps).ceil().max(0.0) as u64 + 1;
     let mut stats = Vec::with_capacity(frames as usize + 16);
-    let mut cut = Cut::default();
+    let mut cut = Cuts::default();
     let mut rgba = Vec::new();
     for frame in 0..frames {
         viewer.pump(Duration::ZERO)?;
@@ -163,7 +162,7 @@ fn stat(
     path_s: f64,
     started: Instant,
     threshold: f64,
-    cut: &Cut,
+    cut: &Cuts,
     viewer: &Viewer,
     times: FrameTimes,
     frame_ms: f64,
@@ -174,7 +173,7 @@ fn stat(
         path_s,
         time_ms: started.elapsed().as_secs_f64() * 1e3,
         threshold_px: threshold,
-        nodes_drawn: cut.splats.len(),
+        nodes_drawn: cut.drawn(),
         bytes_received: viewer.stats.bytes_received,
         resident_pages: viewer.hierarchy().map_or(0, |h| h.resident_pages()),
         traverse_ms: times.traverse_ms,

@@ -9,12 +9,14 @@ use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
 use anyhow::{Context, bail};
-use farfield_protocol::traverse::{Cut, TraverseOptions, traverse_into};
+use farfield_protocol::cube_traverse::{CubeCut, CubeOptions, traverse_cubes_into};
+use farfield_protocol::file::HierarchyKind;
+use farfield_protocol::traverse::{Cut, TraverseOptions, WantedPage, traverse_into};
 use serde::Serialize;
 
 use crate::args::CameraSpec;
 use crate::net::SessionOptions;
-use crate::render::{Kernel, Renderer, SplatStyle};
+use crate::render::{Coverage, Kernel, Renderer, SplatStyle, pack_leaves};
 use crate::viewer::{NetStats, Viewer};
 
 /// When a render stops.
@@ -42,8 +44,12 @@ pub struct RenderJob {
     pub height: u32,
     pub out: Option<PathBuf>,
     pub until: Until,
+    /// Spheres: the splat size threshold; cubes: eps, the projected cell
+    /// edge under which a cell is drawn as its color-cube (pixels).
     pub threshold_px: f64,
     pub kernel: Kernel,
+    /// Cubes: how face coverage is used.
+    pub coverage: Coverage,
     pub session: SessionOptions,
     pub cache_bytes: usize,
     /// Give up (keeping the image so far) after this long.
@@ -64,8 +70,12 @@ pub struct RenderReport {
     /// cancelled, rejected; disconnects), flattened into the JSON.
     #[serde(flatten)]
     pub net: NetStats,
+    /// Splats, or cube faces plus leaf triangles.
     pub nodes_drawn: usize,
     pub nodes_visited: u64,
+    /// Cubes: faces and triangles of the last frame.
+    pub cube_faces_drawn: usize,
+    pub triangles_drawn: u64,
     pub threshold_px: f64,
     /// Bytes received / bytes of the pages the final cut touched.
     pub overfetch_ratio: Option<f64>,
@@ -100,6 +110,7 @@ pub fn run(
     let mut viewer = open_viewer(job)?;
     let style = SplatStyle {
         kernel: job.kernel,
+        coverage: job.coverage,
         ..SplatStyle::default()
     };
     let camera = job.camera;
@@ -157,7 +168,7 @@ pub struct Settle {
     started: Instant,
     timeout: Duration,
     pub keep_frames: bool,
-    pub cut: Cut,
+    pub cut: Cuts,
     pub rgba: Vec<u8>,
     pub frames: Vec<Vec<u8>>,
     pub frame_count: u64,
@@ -187,7 +198,7 @@ impl Settle {
             started,
             timeout,
             keep_frames: false,
-            cut: Cut::default(),
+            cut: Cuts::default(),
             rgba: Vec::new(),
             frames: Vec::new(),
             frame_count: 0,
@@ -246,7 +257,7 @@ impl Settle {
             let failed = viewer.failed_pages();
             let missing = self
                 .cut
-                .wanted
+                .wanted()
                 .iter()
                 .filter(|w| !failed.contains(&w.page))
                 .count();
@@ -263,7 +274,13 @@ impl Settle {
                 return Ok(());
             }
             if self.threshold > self.final_threshold {
-                self.threshold = (self.threshold * 0.5).max(self.final_threshold);
+                // Halving never reaches 0 (`--eps 0`): go there from 1/32.
+                let next = self.threshold * 0.5;
+                self.threshold = if next < 1.0 / 32.0 {
+                    self.final_threshold
+                } else {
+                    next.max(self.final_threshold)
+                };
             } else if !refined {
                 // Nothing to gain from redrawing before more pages arrive.
                 viewer.pump(Duration::from_millis(200))?;
@@ -279,7 +296,7 @@ impl Settle {
         let overfetch_ratio = viewer.hierarchy().filter(|_| streamed).and_then(|h| {
             let needed: u64 = self
                 .cut
-                .touched_pages
+                .touched_pages()
                 .iter()
                 .map(|&p| u64::from(h.header.pages[p as usize].length))
                 .sum();
@@ -295,8 +312,10 @@ impl Settle {
             refined: self.time_to_refined_ms.is_some(),
             frames: self.frame_count,
             net: stats.clone(),
-            nodes_drawn: self.cut.splats.len(),
-            nodes_visited: self.cut.visited,
+            nodes_drawn: self.cut.drawn(),
+            nodes_visited: self.cut.visited(),
+            cube_faces_drawn: self.cut.cubes.faces.len(),
+            triangles_drawn: self.cut.cubes.triangles,
             threshold_px: self.threshold,
             overfetch_ratio,
             adapter: renderer.adapter_description(),
@@ -308,31 +327,100 @@ impl Settle {
     }
 }
 
+/// The last traversal, of whichever kind the scene is.
+#[derive(Debug, Default)]
+pub struct Cuts {
+    pub kind: Option<HierarchyKind>,
+    pub spheres: Cut,
+    pub cubes: CubeCut,
+}
+
+impl Cuts {
+    /// Pages the last traversal would have descended into, most urgent first.
+    pub fn wanted(&self) -> &[WantedPage] {
+        match self.kind {
+            Some(HierarchyKind::Cubes) => &self.cubes.wanted,
+            _ => &self.spheres.wanted,
+        }
+    }
+
+    pub fn touched_pages(&self) -> &[u32] {
+        match self.kind {
+            Some(HierarchyKind::Cubes) => &self.cubes.touched_pages,
+            _ => &self.spheres.touched_pages,
+        }
+    }
+
+    /// Splats, or cube faces plus leaf triangles.
+    pub fn drawn(&self) -> usize {
+        match self.kind {
+            Some(HierarchyKind::Cubes) => self.cubes.faces.len() + self.cubes.triangles as usize,
+            _ => self.spheres.splats.len(),
+        }
+    }
+
+    pub fn visited(&self) -> u64 {
+        match self.kind {
+            Some(HierarchyKind::Cubes) => self.cubes.visited,
+            _ => self.spheres.visited,
+        }
+    }
+}
+
 /// One frame: traverse what is resident, mark what was used, ask for what
-/// is missing, draw. The image lands in `rgba`.
+/// is missing, draw. The image lands in `rgba`. For a cube hierarchy
+/// `threshold` is eps.
 pub fn draw_frame(
     viewer: &mut Viewer,
     renderer: &mut Renderer,
     camera: &farfield_protocol::camera::Camera,
     threshold: f64,
     style: &SplatStyle,
-    cut: &mut Cut,
+    cut: &mut Cuts,
     rgba: &mut Vec<u8>,
 ) -> anyhow::Result<FrameTimes> {
     let Some(h) = viewer.hierarchy() else {
         bail!("no scene header yet");
     };
+    cut.kind = Some(h.header.kind);
+    let t = Instant::now();
+    if h.header.kind == HierarchyKind::Cubes {
+        let options = CubeOptions {
+            eps_px: threshold,
+            min_alpha: style.coverage.min_alpha(),
+            record_pages: true,
+            ..CubeOptions::default()
+        };
+        traverse_cubes_into(h, camera, &options, &mut cut.cubes);
+        let mut vertices = Vec::new();
+        pack_leaves(h, &cut.cubes, camera.eye, &mut vertices);
+        let traverse_ms = t.elapsed().as_secs_f64() * 1e3;
+        viewer.touch(&cut.cubes.touched_pages);
+        viewer.request(&cut.cubes.wanted);
+        let image = renderer.render_geometry(
+            camera,
+            &vertices,
+            &cut.cubes.faces,
+            style.coverage,
+            style.background,
+        )?;
+        *rgba = image.rgba;
+        return Ok(FrameTimes {
+            traverse_ms,
+            upload_ms: image.upload_ms,
+            draw_ms: image.draw_ms,
+        });
+    }
     let options = TraverseOptions {
         threshold_px: threshold,
         record_pages: true,
         ..TraverseOptions::default()
     };
-    let t = Instant::now();
-    traverse_into(h, camera, &options, cut);
+    traverse_into(h, camera, &options, &mut cut.spheres);
     let traverse_ms = t.elapsed().as_secs_f64() * 1e3;
-    viewer.touch(&cut.touched_pages);
-    viewer.request(&cut.wanted);
-    let image = renderer.render(camera, &cut.splats, style)?;
+    viewer.touch(&cut.spheres.touched_pages);
+    viewer.request(&cut.spheres.wanted);
+    let image = renderer.render(camera, &cut.spheres.splats, style)?;
     *rgba = image.rgba;
     Ok(FrameTimes {
         traverse_ms,

@@ -12,9 +12,12 @@
 //! - [`Renderer`]: the device, pipeline, instance buffers and frame.
 //! - [`SplatStyle`], [`Kernel`]: how splats look; [`RenderOutput`]: an image
 //!   with its upload and draw times.
+//! - [`Renderer::render_geometry`] ([`geometry`]): triangles and color-cube
+//!   faces, for the cube hierarchy and the full-geometry reference.
 //! - [`headless_or_skip`]: a renderer for tests, or a clear failure.
 
 mod adapter;
+mod geometry;
 mod instances;
 mod renderer;
 mod target;
@@ -22,6 +25,7 @@ mod target;
 mod tests;
 
 pub use adapter::{ALLOW_NO_GPU_ENV, BACKEND_ENV};
+pub use geometry::{Coverage, GpuVertex, WorldCorner, pack_leaves, pack_triangle};
 pub use instances::DEFAULT_COLOR;
 pub use renderer::{MIN_RADIUS_PX, Renderer};
 
@@ -47,6 +51,8 @@ pub struct SplatStyle {
     /// Light both sides of a splat (`|n.l|`), for scenes whose normals have
     /// no consistent orientation.
     pub two_sided: bool,
+    /// Cube hierarchies: how face coverage is used.
+    pub coverage: Coverage,
 }
 
 impl Default for SplatStyle {
@@ -57,6 +63,7 @@ impl Default for SplatStyle {
             background: [0, 0, 0],
             light_dir: glam::Vec3::new(0.4, 0.3, 0.866),
             two_sided: false,
+            coverage: Coverage::default(),
         }
     }
 }

@@ -9,6 +9,7 @@ use farfield_protocol::traverse::Splat;
 use glam::{DVec3, Vec3};
 
 use super::adapter::{self, Gpu};
+use super::geometry::GeometryPipelines;
 use super::instances::{self, GpuSplat, STRIDE};
 use super::target::{COLOR_FORMAT, DEPTH_FORMAT, Target};
 use super::{Kernel, RenderOutput, SplatStyle};
@@ -44,6 +45,8 @@ pub struct Renderer {
     /// Splats per chunk: the most one buffer may hold.
     chunk_splats: u64,
     scratch: Vec<GpuSplat>,
+    /// Triangle and cube-face pipelines, made when first needed.
+    geometry: Option<GeometryPipelines>,
 }
 
 impl Renderer {
@@ -151,8 +154,22 @@ impl Renderer {
             chunks: Vec::new(),
             chunk_splats,
             scratch: Vec::new(),
+            geometry: None,
             gpu,
         })
+    }
+
+    /// The device, the geometry pipelines (made on first use) and the frame.
+    pub(super) fn geometry_parts(
+        &mut self,
+    ) -> anyhow::Result<(&Gpu, &mut GeometryPipelines, &Target)> {
+        if self.geometry.is_none() {
+            self.geometry = Some(GeometryPipelines::new(&self.gpu.device)?);
+        }
+        match self.geometry.as_mut() {
+            Some(pipes) => Ok((&self.gpu, pipes, &self.target)),
+            None => bail!("no geometry pipelines"),
+        }
     }
 
     /// The adapter in use, e.g. `llvmpipe (LLVM 15.0.7, 256 bits) / Vulkan (...)`.
