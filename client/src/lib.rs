@@ -3,7 +3,10 @@
 //! - [`viewer`]: [`viewer::Viewer`], the resident pages of one scene (from a
 //!   file or a memory server), their LRU, and what was asked for.
 //! - [`net`]: the websocket session with the memory server, reconnecting.
-//! - [`render`]: the wgpu splat renderer (headless).
+//! - [`render`]: the wgpu renderer (headless): splats, and triangles plus
+//!   color-cube faces for cube hierarchies.
+//! - [`reference`]: a scene's full geometry, the reference cube renders
+//!   are timed and measured against.
 //! - [`commands`]: `farfield render`, `traverse`, `demo` and friends.
 //! - [`args`]: camera, orbit and size arguments; [`path`]: camera paths.
 //! - [`image`]: PNG in and out; [`eval`]: image error metrics.
@@ -17,5 +20,6 @@ pub mod image;
 pub mod local;
 pub mod net;
 pub mod path;
+pub mod reference;
 pub mod render;
 pub mod viewer;

@@ -45,6 +45,9 @@ enum Command {
         #[arg(long)]
         json: bool,
     },
+    /// The color-cube paper's Table 2: full geometry against the cube
+    /// hierarchy at several distances, with speedups and image error.
+    BenchCubes(Box<BenchCubesArgs>),
     /// Build the default scene, serve it in-process, fly a client through it.
     Demo {
         /// Folder for the scene file, frames, CSV and summary.
@@ -77,6 +80,41 @@ enum Command {
         #[arg(long)]
         json: bool,
     },
+}
+
+#[derive(Debug, clap::Args)]
+struct BenchCubesArgs {
+    /// A cube hierarchy (`farfield-server build --kind cubes`).
+    #[arg(long)]
+    file: PathBuf,
+    /// The inputs it was built from: the full-geometry reference.
+    #[arg(long = "input", required = true)]
+    inputs: Vec<String>,
+    /// Generator parameters of the inputs, `key=value`.
+    #[arg(long = "param", value_name = "KEY=VALUE")]
+    params: Vec<String>,
+    /// Eye distances from the scene centre, in scene radii.
+    #[arg(long, value_delimiter = ',', default_value = "1.75,3.5,7,14")]
+    distances: Vec<f64>,
+    /// Degrees off the octree's x axis (the paper: 30 for the tree, 25 for the molecule).
+    #[arg(long, default_value_t = 30.0)]
+    azimuth: f64,
+    #[arg(long, default_value_t = 0.0)]
+    elevation: f64,
+    /// The paper's images were 124x124.
+    #[arg(long, value_parser = parse_size, default_value = "124x124")]
+    size: (u32, u32),
+    #[arg(long, default_value_t = 1.0)]
+    eps: f64,
+    #[arg(long, default_value = "alpha")]
+    coverage: farfield_client::render::Coverage,
+    #[arg(long, default_value_t = 5)]
+    repeats: usize,
+    /// Write each distance's geometry and hierarchy images here.
+    #[arg(long)]
+    images: Option<PathBuf>,
+    #[arg(long)]
+    json: bool,
 }
 
 #[derive(Debug, Clone, Copy, ValueEnum)]
@@ -310,6 +348,36 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             json,
         } => compare(a, b, tolerance, json),
         Command::Render(args) => render(*args),
+        Command::BenchCubes(args) => {
+            use farfield_client::commands::bench_cubes::{CubeBenchJob, format_table, run};
+            anyhow::ensure!(
+                args.eps.is_finite() && args.eps >= 0.0,
+                "--eps must be a non-negative number"
+            );
+            let job = CubeBenchJob {
+                file: args.file,
+                inputs: args.inputs,
+                params: args.params,
+                distances: args.distances,
+                azimuth_deg: args.azimuth,
+                elevation_deg: args.elevation,
+                width: args.size.0,
+                height: args.size.1,
+                eps_px: args.eps,
+                coverage: args.coverage,
+                repeats: args.repeats,
+                images: args.images,
+            };
+            let mut renderer =
+                Renderer::new_headless(job.width, job.height).context("starting the renderer")?;
+            let report = run(&job, &mut renderer)?;
+            if args.json {
+                println!("{}", serde_json::to_string(&report)?);
+            } else {
+                print!("{}", format_table(&report));
+            }
+            Ok(())
+        }
         Command::BenchStream {
             scene,
             clients,

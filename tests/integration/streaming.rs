@@ -7,13 +7,12 @@ use std::time::{Duration, Instant};
 
 use farfield_client::args::CameraSpec;
 use farfield_client::commands::render::{
-    RenderJob, Rendered, Settle, Source, Until, draw_frame, run,
+    Cuts, RenderJob, Rendered, Settle, Source, Until, draw_frame, run,
 };
 use farfield_client::eval::compare;
 use farfield_client::net::SessionOptions;
 use farfield_client::render::{Kernel, Renderer, SplatStyle, headless_or_skip};
 use farfield_client::viewer::Viewer;
-use farfield_protocol::traverse::Cut;
 use farfield_server::import::{Params, load_input};
 use farfield_server::serve::{RunningServer, ServerConfig, start};
 use farfield_server::store::write_atomic;
@@ -71,6 +70,7 @@ fn job(source: Source, camera: CameraSpec) -> RenderJob {
         until: Until::Refined,
         threshold_px: 1.0,
         kernel: Kernel::Square,
+        coverage: Default::default(),
         session: SessionOptions::default(),
         cache_bytes: 256 << 20,
         timeout: Duration::from_secs(60),
@@ -166,17 +166,18 @@ fn the_first_image_comes_from_page_zero_and_error_never_grows() {
     };
     let header = h.header.clone();
     let cam = camera().resolve(&header, SIZE.0, SIZE.1);
-    let (mut cut, mut first) = (Cut::default(), Vec::new());
+    let (mut cuts, mut first) = (Cuts::default(), Vec::new());
     draw_frame(
         &mut viewer,
         &mut renderer,
         &cam,
         1.0,
         &style,
-        &mut cut,
+        &mut cuts,
         &mut first,
     )
     .unwrap();
+    let cut = &cuts.spheres;
     assert!(!cut.splats.is_empty() && cut.splats.iter().all(|s| s.node < page0_nodes));
     assert!(
         !cut.wanted.is_empty(),

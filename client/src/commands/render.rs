@@ -392,18 +392,19 @@ pub fn draw_frame(
             ..CubeOptions::default()
         };
         traverse_cubes_into(h, camera, &options, &mut cut.cubes);
-        let mut vertices = Vec::new();
-        pack_leaves(h, &cut.cubes, camera.eye, &mut vertices);
         let traverse_ms = t.elapsed().as_secs_f64() * 1e3;
+        let image = draw_cut(
+            renderer,
+            &CubeFrame {
+                hierarchy: h,
+                camera,
+                cut: &cut.cubes,
+                coverage: style.coverage,
+                background: style.background,
+            },
+        )?;
         viewer.touch(&cut.cubes.touched_pages);
         viewer.request(&cut.cubes.wanted);
-        let image = renderer.render_geometry(
-            camera,
-            &vertices,
-            &cut.cubes.faces,
-            style.coverage,
-            style.background,
-        )?;
         *rgba = image.rgba;
         return Ok(FrameTimes {
             traverse_ms,
@@ -427,4 +428,35 @@ pub fn draw_frame(
         upload_ms: image.upload_ms,
         draw_ms: image.draw_ms,
     })
+}
+
+/// What drawing one cube cut needs.
+#[derive(Debug, Clone, Copy)]
+pub struct CubeFrame<'a> {
+    pub hierarchy: &'a farfield_protocol::hierarchy::Hierarchy,
+    pub camera: &'a farfield_protocol::camera::Camera,
+    pub cut: &'a CubeCut,
+    pub coverage: Coverage,
+    pub background: [u8; 3],
+}
+
+/// Draws a cube cut: its leaves' triangles (packed camera-relative here,
+/// counted in the upload time) and its faces.
+pub fn draw_cut(
+    renderer: &mut Renderer,
+    frame: &CubeFrame,
+) -> anyhow::Result<crate::render::RenderOutput> {
+    let started = Instant::now();
+    let mut vertices = Vec::new();
+    pack_leaves(frame.hierarchy, frame.cut, frame.camera.eye, &mut vertices);
+    let pack_ms = started.elapsed().as_secs_f64() * 1e3;
+    let mut image = renderer.render_geometry(
+        frame.camera,
+        &vertices,
+        &frame.cut.faces,
+        frame.coverage,
+        frame.background,
+    )?;
+    image.upload_ms += pack_ms;
+    Ok(image)
 }

@@ -33,6 +33,7 @@ fn style(kernel: Kernel) -> SplatStyle {
         background: BG,
         light_dir: Vec3::NEG_X,
         two_sided: false,
+        coverage: Default::default(),
     }
 }
 

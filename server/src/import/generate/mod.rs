@@ -8,6 +8,9 @@
 //!   tree mesh. Params: `seed` (1), `trees` (16, 0..=10000000), `size`
 //!   (512 heightfield vertices per side, 2..=16384), `tree_triangles`
 //!   (20000), `extent` (1000 units across), `height` (80, the highest peak).
+//! - `gen:forest` (`forest.rs`): `trees` (1, 1..=1048576) instances of one
+//!   `gen:tree` on a square grid, for the color-cube paper's scaling
+//!   experiment. Params: `seed` (1), `trees`, `triangles` (50000).
 //!
 //! Generators are the project's reproducible test inputs, so they are
 //! **deterministic**: the same name and params give bitwise the same
@@ -20,6 +23,7 @@
 //! accepted, never silently ignored: a typo in a benchmark's params must not
 //! quietly benchmark the default scene.
 
+mod forest;
 mod island;
 mod noise;
 mod rng;
@@ -36,9 +40,10 @@ use crate::scene::Scene;
 pub const DEFAULT_SCENE: &str = "gen:island";
 
 /// Names accepted after `gen:`.
-pub const GENERATORS: [&str; 2] = ["tree", "island"];
+pub const GENERATORS: [&str; 3] = ["tree", "island", "forest"];
 
 const TREE_KEYS: [&str; 2] = ["seed", "triangles"];
+const FOREST_KEYS: [&str; 3] = ["seed", "trees", "triangles"];
 const ISLAND_KEYS: [&str; 6] = [
     "seed",
     "trees",
@@ -64,6 +69,19 @@ pub fn generate(name: &str, params: &Params) -> Result<Scene, ImportError> {
             Ok(Scene::single(tree::tree_geometry(
                 "gen:tree", seed, triangles,
             )))
+        }
+        "forest" => {
+            let p = Reader::new(name, params, &FOREST_KEYS)?;
+            Ok(forest::forest(
+                p.get("seed", 1u64)?,
+                p.range("trees", 1, 1, 1 << 20)?,
+                p.range(
+                    "triangles",
+                    tree::DEFAULT_TRIANGLES,
+                    tree::MIN_TRIANGLES,
+                    tree::MAX_TRIANGLES,
+                )?,
+            ))
         }
         "island" => {
             let p = Reader::new(name, params, &ISLAND_KEYS)?;
@@ -162,6 +180,7 @@ mod tests {
     use super::*;
     use crate::import::validate;
     use crate::scene::{Geometry, Primitives};
+    use glam::DVec3;
 
     fn params(pairs: &[&str]) -> Params {
         Params::parse(pairs).expect("params")
@@ -359,9 +378,29 @@ mod tests {
     }
 
     #[test]
+    fn a_forest_instances_one_tree_on_a_grid() {
+        let scene = generate("forest", &params(&["trees=5", "triangles=2000"])).unwrap();
+        assert_eq!(scene.geometries.len(), 1);
+        assert_eq!(scene.instances.len(), 5);
+        // A 3 x 3 grid, filled row by row: distinct places, spaced apart.
+        let places: Vec<DVec3> = scene
+            .instances
+            .iter()
+            .map(|i| i.world_from_local.translation)
+            .collect();
+        for (a, p) in places.iter().enumerate() {
+            for q in &places[a + 1..] {
+                assert!(p.distance(*q) > 5.0, "{p} {q}");
+            }
+        }
+    }
+
+    #[test]
     fn bad_names_and_params_are_errors() {
-        let m = message("forest", &[]);
-        assert!(m.contains("gen:tree") && m.contains("gen:island"), "{m}");
+        let m = message("meadow", &[]);
+        assert!(m.contains("gen:tree") && m.contains("gen:forest"), "{m}");
+        let m = message("forest", &["trees=0"]);
+        assert!(m.contains("trees"), "{m}");
         let m = message("island", &["sizee=10"]);
         assert!(m.contains("sizee") && m.contains("tree_triangles"), "{m}");
         let m = message("tree", &["trees=10"]);
