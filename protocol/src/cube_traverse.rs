@@ -28,7 +28,9 @@ pub struct CubeOptions {
     /// only empty faces (alpha as transparency, 1996); a threshold such as
     /// 128 is the 1995 report's way to use coverage.
     pub min_alpha: u8,
-    /// Near-plane distance as a fraction of the root cell's half edge.
+    /// Near-plane distance as a fraction of the root cell's half edge. It
+    /// only culls cells wholly behind it, so it can be tiny: a camera 30
+    /// levels down, among cells a billionth of the root, still sees them.
     pub near_fraction: f64,
     /// Fill [`CubeCut::touched_pages`].
     pub record_pages: bool,
@@ -39,7 +41,7 @@ impl Default for CubeOptions {
         Self {
             eps_px: 1.0,
             min_alpha: 1,
-            near_fraction: 1e-4,
+            near_fraction: 1e-12,
             record_pages: false,
         }
     }
