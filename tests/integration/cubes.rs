@@ -311,6 +311,7 @@ fn an_opaque_wall_stays_opaque_at_every_level() {
             samples: 16,
             max_depth: 12,
             composite,
+            cube_cost: 6.0,
             channels: Default::default(),
             root_min: DVec3::new(0.15, -0.005, -0.005),
         };
@@ -638,4 +639,87 @@ fn the_first_streamed_image_is_made_of_cubes() {
     assert!(not_blank(&rgba), "the first image is blank");
     drop(viewer);
     rt.block_on(server.shutdown()).unwrap();
+}
+
+/// k x k x k clusters (1995, section 4.2): a cell drawn as its cluster
+/// draws sub-cubes a k-th of its edge, and the image stays above the same
+/// floor as single cubes.
+#[test]
+fn clustered_cubes_draw_sub_cubes_and_keep_the_floor() {
+    let scene = tree(8000);
+    let options = BuildCubes {
+        cluster: 2,
+        ..BuildCubes::default()
+    };
+    let h = resident(&build_cubes(scene.clone(), &options).unwrap().0);
+    assert_eq!(h.header.cluster, 2);
+    let camera = orbit(&h, 30.0, 14.0);
+    let cut = traverse_cubes(&h, &camera, &CubeOptions::default());
+    assert!(!cut.faces.is_empty());
+    // Every drawn cube is a sub-cube: half the edge of some cell's.
+    let root_edge = 2.0 * h.header.root_radius;
+    for f in &cut.faces {
+        let level = (root_edge / f.edge).log2();
+        assert!(
+            (level - level.round()).abs() < 1e-9 && level >= 1.0,
+            "edge {}",
+            f.edge
+        );
+    }
+    let Some(mut renderer) = headless_or_skip(SIZE.0, SIZE.1).unwrap() else {
+        return;
+    };
+    for distance in [7.0, 14.0] {
+        let camera = orbit(&h, 30.0, distance);
+        let p = psnr(
+            &reference_image(&mut renderer, &scene, &camera),
+            &cube_image(&mut renderer, &h, &camera, 1.0),
+        );
+        assert!(p >= 30.0, "clustered at {distance} radii: PSNR {p:.2}");
+    }
+}
+
+/// Flying through a cube hierarchy, eps follows the frame budget like the
+/// splat threshold: a budget no frame can meet drives it up.
+#[test]
+fn eps_adapts_to_the_frame_budget_in_flight() {
+    use farfield_client::commands::fly::{FlyJob, fly};
+    use farfield_client::path::{CameraPath, Keyframe, OrbitKey};
+    use farfield_client::render::SplatStyle;
+    use farfield_client::viewer::Viewer;
+    let Some(mut renderer) = headless_or_skip(SIZE.0, SIZE.1).unwrap() else {
+        return;
+    };
+    let dir = scratch("cubes-fly");
+    let path = dir.join("tree.ff");
+    write_atomic(&path, &cubes(tree(8000))).unwrap();
+    let key = |t: f64, azimuth: f64| Keyframe {
+        t,
+        orbit: Some(OrbitKey {
+            azimuth,
+            elevation: 10.0,
+            distance: 2.0,
+        }),
+        eye: None,
+        target: None,
+        fov: None,
+    };
+    let job = FlyJob {
+        path: CameraPath::from_keyframes(&[key(0.0, 0.0), key(1.0, 90.0)]).unwrap(),
+        fps: 8.0,
+        width: SIZE.0,
+        height: SIZE.1,
+        final_threshold_px: 1.0,
+        target_frame_ms: 1e-3,
+        style: SplatStyle::default(),
+        frames_dir: None,
+        settle: false,
+        timeout: Duration::from_secs(60),
+    };
+    let mut viewer = Viewer::open_file(&path).unwrap();
+    let (stats, _) = fly(&mut viewer, &mut renderer, &job, std::time::Instant::now()).unwrap();
+    let first = stats.first().unwrap().threshold_px;
+    let last = stats.last().unwrap().threshold_px;
+    assert!(last > first, "eps stayed at {first} -> {last}");
+    assert!(stats.iter().all(|s| s.nodes_drawn > 0));
 }

@@ -245,8 +245,10 @@ impl GeometryPipelines {
 }
 
 /// The triangles of the cut's leaves, camera-relative, appended to `out`.
+/// Each leaf's vertices are decoded once, then expanded by its indices.
 pub fn pack_leaves(h: &Hierarchy, cut: &CubeCut, eye: DVec3, out: &mut Vec<GpuVertex>) {
     out.reserve(cut.triangles as usize * 3);
+    let mut decoded: Vec<GpuVertex> = Vec::new();
     for leaf in &cut.leaves {
         let Some(g) = h
             .page(leaf.page as usize)
@@ -256,11 +258,14 @@ pub fn pack_leaves(h: &Hierarchy, cut: &CubeCut, eye: DVec3, out: &mut Vec<GpuVe
         else {
             continue;
         };
-        let vertex = |i: u32| {
-            let i = i as usize;
-            let p = cube_codec::dequantize_in_cell(g.positions[i], leaf.min, leaf.edge, eye);
+        // Cell-relative offsets are exact in f32; only the cell's corner
+        // relative to the eye needs f64.
+        let origin = cube_codec::dequantize_in_cell([0; 3], leaf.min, leaf.edge, eye).as_vec3();
+        let step = (leaf.edge * cube_codec::POSITION_SPAN / cube_codec::POSITION_STEPS) as f32;
+        decoded.clear();
+        decoded.extend(g.positions.iter().enumerate().map(|(i, q)| {
             GpuVertex {
-                position: p.as_vec3().to_array(),
+                position: (origin + Vec3::from(q.map(f32::from)) * step).to_array(),
                 normal: g
                     .normals
                     .as_ref()
@@ -270,9 +275,9 @@ pub fn pack_leaves(h: &Hierarchy, cut: &CubeCut, eye: DVec3, out: &mut Vec<GpuVe
                     .as_ref()
                     .map_or(rgb4(DEFAULT_COLOR), |c| rgb4(c[i])),
             }
-        };
+        }));
         for t in &g.triangles {
-            out.extend(t.map(vertex));
+            out.extend(t.map(|i| decoded[i as usize]));
         }
     }
 }

@@ -53,6 +53,7 @@ pub fn run(args: &BuildArgs) -> anyhow::Result<Report> {
                 cluster: args.cluster,
                 max_depth: args.max_depth,
                 composite: args.composite,
+                cube_cost: args.cube_cost,
                 page_bytes: args
                     .page_bytes
                     .unwrap_or(crate::build::cubes::DEFAULT_CUBE_PAGE_BYTES),

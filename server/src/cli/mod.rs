@@ -67,6 +67,10 @@ pub struct BuildArgs {
     /// opaque) or `over` (1996).
     #[arg(long, default_value = "disjoint")]
     pub composite: crate::build::cubes::Composite,
+    /// Cubes: what one cube costs to draw, in triangles (the subdivision
+    /// criterion; larger means larger leaves).
+    #[arg(long, default_value_t = crate::build::cubes::octree::CUBE_COST)]
+    pub cube_cost: f64,
     /// Print one JSON summary object on stdout and no progress bar.
     #[arg(long)]
     pub json: bool,

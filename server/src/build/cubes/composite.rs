@@ -174,4 +174,24 @@ mod tests {
         // From -x the black cube is in front.
         assert_eq!(f[Face::NegX.index()], [0.0; 4]);
     }
+
+    #[test]
+    fn clusters_combine_the_child_sub_cubes_under_each_parent_sub_cube() {
+        // k = 2: parent sub-cube 0 covers child octant 0, all 8 of its
+        // sub-cubes. Only child sub-cube 7 (upper x, y, z) has a face.
+        let mut faces = [[0.0; 4]; 6];
+        faces[Face::PosX.index()] = [1.0; 4];
+        let child: SubCubes = vec![(7, faces)];
+        let mut children: [Option<&SubCubes>; 8] = [None; 8];
+        children[0] = Some(&child);
+        let parent = combine_clusters(&children, 2, Composite::Disjoint);
+        assert_eq!(parent.len(), 1);
+        assert_eq!(parent[0].0, 0);
+        assert_eq!(parent[0].1[Face::PosX.index()], [0.25; 4]);
+        // The same child in octant 7 lands in parent sub-cube 7.
+        children[0] = None;
+        children[7] = Some(&child);
+        let parent = combine_clusters(&children, 2, Composite::Disjoint);
+        assert_eq!(parent.iter().map(|s| s.0).collect::<Vec<_>>(), vec![7]);
+    }
 }

@@ -43,6 +43,10 @@ pub struct CubeOptions {
     /// Deepest level a cell may have (the root is level 0).
     pub max_depth: u32,
     pub composite: Composite,
+    /// What one cube costs to draw, in triangles: a cell splits while its
+    /// primitives cost more than its children's cubes. Larger values make
+    /// larger leaves (fewer cells, more triangles each).
+    pub cube_cost: f64,
     pub page_bytes: usize,
 }
 
@@ -53,6 +57,7 @@ impl Default for CubeOptions {
             cluster: 1,
             max_depth: 32,
             composite: Composite::Disjoint,
+            cube_cost: octree::CUBE_COST,
             page_bytes: DEFAULT_CUBE_PAGE_BYTES,
         }
     }
@@ -86,6 +91,12 @@ pub fn build_cubes(
             "cluster size {} is not a power of two from 1 to {}",
             options.cluster,
             cube_codec::MAX_CLUSTER
+        )));
+    }
+    if !(options.cube_cost.is_finite() && options.cube_cost > 0.0) {
+        return Err(BuildError::Invalid(format!(
+            "cube cost {} is not a positive number",
+            options.cube_cost
         )));
     }
     if options.samples == 0 || options.samples > 256 {
@@ -125,6 +136,7 @@ pub fn build_cubes(
         samples: options.samples,
         max_depth: options.max_depth,
         composite: options.composite,
+        cube_cost: options.cube_cost,
         channels,
         root_min,
     };

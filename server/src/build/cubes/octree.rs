@@ -20,7 +20,8 @@ use super::composite::{Composite, Faces, SubCubes, combine, combine_clusters};
 use super::raster::leaf_cubes;
 use super::source::{PrimRef, Source, Triangle};
 
-/// What drawing one color-cube costs, in triangles: at most three quads.
+/// What drawing one color-cube costs, in triangles, by default: at most
+/// three quads of two triangles.
 pub const CUBE_COST: f64 = 6.0;
 /// A split may at most multiply a cell's references by this.
 const MAX_DUPLICATION: usize = 4;
@@ -47,6 +48,8 @@ pub struct Settings {
     pub samples: usize,
     pub max_depth: u32,
     pub composite: Composite,
+    /// Cost of drawing one cube, in triangles ([`CUBE_COST`]).
+    pub cube_cost: f64,
     pub channels: Channels,
     /// The root cell's minimum corner (cost splitting counts cells on the
     /// grid anchored there).
@@ -70,7 +73,7 @@ pub fn build_cell(
         .iter()
         .map(|r| src.cost(r) / overlapped_cells(r, s.root_min, edge))
         .sum();
-    let parts = if level < s.max_depth && cost > CUBE_COST {
+    let parts = if level < s.max_depth && cost > s.cube_cost {
         partition(&refs, min, edge)
     } else {
         Default::default()
@@ -82,7 +85,7 @@ pub fn build_cell(
     // point, or all spanning the cell) every level would multiply the work.
     let references: usize = parts.iter().map(Vec::len).sum();
     let split = occupied > 0
-        && cost > CUBE_COST * occupied as f64
+        && cost > s.cube_cost * occupied as f64
         && references <= MAX_DUPLICATION * refs.len();
     if !split {
         return Some(leaf(src, &refs, min, edge, s));
