@@ -73,8 +73,13 @@ impl Timing {
 #[derive(Debug, Clone, Serialize)]
 pub struct CubeBenchRow {
     pub distance: f64,
+    /// Whole frames: packing on the CPU, upload, draw, read-back.
     pub geometry: Timing,
     pub hierarchy: Timing,
+    /// The GPU part alone: from submitting the draw to the image in memory
+    /// (what a renderer keeping the geometry on the GPU would pay).
+    pub geometry_draw: Timing,
+    pub hierarchy_draw: Timing,
     /// geometry median / hierarchy median.
     pub speedup: f64,
     pub cube_faces: usize,
@@ -134,6 +139,7 @@ pub fn run(job: &CubeBenchJob, renderer: &mut Renderer) -> anyhow::Result<CubeBe
         );
         let mut vertices = Vec::new();
         let mut geometry_ms = Vec::new();
+        let mut geometry_draw_ms = Vec::new();
         let mut geometry_image = Vec::new();
         // One warm-up frame of each, then the timed repeats.
         for i in 0..=repeats {
@@ -142,20 +148,23 @@ pub fn run(job: &CubeBenchJob, renderer: &mut Renderer) -> anyhow::Result<CubeBe
             let image = renderer.render_geometry(&camera, &vertices, &[], job.coverage, [0; 3])?;
             if i > 0 {
                 geometry_ms.push(t.elapsed().as_secs_f64() * 1e3);
+                geometry_draw_ms.push(image.draw_ms);
             }
             geometry_image = image.rgba;
         }
         drop(vertices);
         let mut cut = CubeCut::default();
         let mut hierarchy_ms = Vec::new();
+        let mut hierarchy_draw_ms = Vec::new();
         let mut hierarchy_image = Vec::new();
         for i in 0..=repeats {
             let t = Instant::now();
             let image = hierarchy_frame(&h, renderer, &camera, job, &mut cut)?;
             if i > 0 {
                 hierarchy_ms.push(t.elapsed().as_secs_f64() * 1e3);
+                hierarchy_draw_ms.push(image.draw_ms);
             }
-            hierarchy_image = image;
+            hierarchy_image = image.rgba;
         }
         let m = compare(&geometry_image, &hierarchy_image, job.width, job.height, 8)?;
         if let Some(dir) = &job.images {
@@ -174,6 +183,8 @@ pub fn run(job: &CubeBenchJob, renderer: &mut Renderer) -> anyhow::Result<CubeBe
             speedup: geometry.median_ms / hierarchy.median_ms,
             geometry,
             hierarchy,
+            geometry_draw: Timing::of(geometry_draw_ms),
+            hierarchy_draw: Timing::of(hierarchy_draw_ms),
             cube_faces: cut.faces.len(),
             faces_per_level: cut.faces_per_level.clone(),
             triangles_drawn: cut.triangles,
@@ -206,7 +217,7 @@ fn hierarchy_frame(
     camera: &Camera,
     job: &CubeBenchJob,
     cut: &mut CubeCut,
-) -> anyhow::Result<Vec<u8>> {
+) -> anyhow::Result<crate::render::RenderOutput> {
     let options = CubeOptions {
         eps_px: job.eps_px,
         min_alpha: job.coverage.min_alpha(),
@@ -223,7 +234,7 @@ fn hierarchy_frame(
             background: [0; 3],
         },
     )?;
-    Ok(image.rgba)
+    Ok(image)
 }
 
 /// The table as text, one line per distance.
@@ -240,14 +251,17 @@ pub fn format_table(r: &CubeBenchReport) -> String {
         r.adapter
     );
     s.push_str(
-        "d      geometry ms   hierarchy ms  speedup  faces   triangles  PSNR dB  faces per level\n",
+        "frame: CPU packing, upload, draw and read-back; draw: GPU submit to image in memory\n",
     );
+    s.push_str("d      geometry ms (draw)  hierarchy ms (draw)  speedup  faces   triangles  PSNR dB  faces per level\n");
     for row in &r.rows {
         s.push_str(&format!(
-            "{:<6} {:>11.2}   {:>12.2}  {:>7.2}  {:>6}  {:>9}  {:>7}  {:?}\n",
+            "{:<6} {:>8.2} ({:>6.2})  {:>9.2} ({:>6.2})  {:>7.2}  {:>6}  {:>9}  {:>7}  {:?}\n",
             row.distance,
             row.geometry.median_ms,
+            row.geometry_draw.median_ms,
             row.hierarchy.median_ms,
+            row.hierarchy_draw.median_ms,
             row.speedup,
             row.cube_faces,
             row.triangles_drawn,
