@@ -7,6 +7,8 @@
 //!   color-cube faces for cube hierarchies.
 //! - [`reference`]: a scene's full geometry, the reference cube renders
 //!   are timed and measured against.
+//! - [`bench`]: `farfield bench` and `report`: error against run time for
+//!   every rendering mode, tables, plots and an HTML page.
 //! - [`commands`]: `farfield render`, `traverse`, `demo` and friends.
 //! - [`args`]: camera, orbit and size arguments; [`path`]: camera paths.
 //! - [`image`]: PNG in and out; [`eval`]: image error metrics.
@@ -14,6 +16,7 @@
 //!   [`farfield_protocol::hierarchy::Hierarchy`] (the `--file` mode).
 
 pub mod args;
+pub mod bench;
 pub mod commands;
 pub mod eval;
 pub mod image;

@@ -48,6 +48,16 @@ enum Command {
     /// The color-cube paper's Table 2: full geometry against the cube
     /// hierarchy at several distances, with speedups and image error.
     BenchCubes(Box<BenchCubesArgs>),
+    /// Error against run time: sweep a mode's parameter over cameras, against a reference.
+    Bench(Box<BenchArgs>),
+    /// One HTML page (plots, tables, machine, the papers' figures) from bench folders.
+    Report {
+        /// Folders written by `farfield bench --out`.
+        #[arg(required = true)]
+        dirs: Vec<PathBuf>,
+        #[arg(long)]
+        out: PathBuf,
+    },
     /// Build the default scene, serve it in-process, fly a client through it.
     Demo {
         /// Folder for the scene file, frames, CSV and summary.
@@ -80,6 +90,41 @@ enum Command {
         #[arg(long)]
         json: bool,
     },
+}
+
+#[derive(Debug, clap::Args)]
+struct BenchArgs {
+    /// Memory server, e.g. http://127.0.0.1:7878 (the views then stream).
+    #[arg(long, requires = "scene", conflicts_with = "file")]
+    server: Option<String>,
+    #[arg(long)]
+    scene: Option<String>,
+    /// A paged file, read whole.
+    #[arg(long, required_unless_present = "server")]
+    file: Option<PathBuf>,
+    /// Cameras: the keyframes of this path (JSON); default an orbit at 1.75, 3.5 and 7 radii.
+    #[arg(long)]
+    path: Option<PathBuf>,
+    /// spheres, cubes or geometry.
+    #[arg(long)]
+    mode: String,
+    /// PARAM=v1,v2,...: threshold or kernel (spheres), eps or coverage (cubes), full=all (geometry).
+    #[arg(long)]
+    sweep: String,
+    /// The scene's input (files or gen: scenes): the geometry mode's triangles, and the reference.
+    #[arg(long = "input")]
+    inputs: Vec<String>,
+    #[arg(long = "param", value_name = "KEY=VALUE")]
+    params: Vec<String>,
+    #[arg(long, value_parser = parse_size, default_value = "320x240")]
+    size: (u32, u32),
+    #[arg(long, default_value_t = 3)]
+    repeats: u32,
+    /// Folder for bench.csv, progress.csv, meta.json and the plots.
+    #[arg(long)]
+    out: PathBuf,
+    #[arg(long, default_value_t = 120.0)]
+    timeout_s: f64,
 }
 
 #[derive(Debug, clap::Args)]
@@ -348,6 +393,56 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             json,
         } => compare(a, b, tolerance, json),
         Command::Render(args) => render(*args),
+        Command::Bench(args) => {
+            let source = match (args.server, args.scene, args.file) {
+                (Some(url), Some(scene), None) => Source::Server { url, scene },
+                (None, _, Some(path)) => Source::File(path),
+                _ => anyhow::bail!("give --server URL --scene NAME, or --file FILE"),
+            };
+            let (param, values) = args
+                .sweep
+                .split_once('=')
+                .context("--sweep must be PARAM=v1,v2,...")?;
+            let values: Vec<String> = values
+                .split(',')
+                .map(str::to_owned)
+                .filter(|v| !v.is_empty())
+                .collect();
+            anyhow::ensure!(!values.is_empty(), "--sweep {param}= has no values");
+            let job = farfield_client::bench::BenchJob {
+                source,
+                path: args
+                    .path
+                    .as_deref()
+                    .map(farfield_client::path::CameraPath::load)
+                    .transpose()?,
+                mode: args.mode,
+                param: param.to_owned(),
+                values,
+                inputs: args.inputs,
+                input_params: args.params,
+                width: args.size.0,
+                height: args.size.1,
+                repeats: args.repeats,
+                out: args.out,
+                timeout: Duration::from_secs_f64(args.timeout_s.max(1.0)),
+            };
+            let mut renderer =
+                Renderer::new_headless(job.width, job.height).context("starting the renderer")?;
+            let (rows, progress) = farfield_client::bench::run(&job, &mut renderer)?;
+            println!(
+                "{}: {} rows, {} progress frames; bench.csv, progress.csv, meta.json and plots written",
+                job.out.display(),
+                rows.len(),
+                progress.len()
+            );
+            Ok(())
+        }
+        Command::Report { dirs, out } => {
+            let page = farfield_client::bench::report::write_report(&dirs, &out)?;
+            println!("{}", page.display());
+            Ok(())
+        }
         Command::BenchCubes(args) => {
             use farfield_client::commands::bench_cubes::{CubeBenchJob, format_table, run};
             anyhow::ensure!(

@@ -103,6 +103,13 @@ impl CameraPath {
         Ok(Self { keys: out })
     }
 
+    /// The keyframes' times from the path's start: one camera each, for
+    /// the bench.
+    pub fn key_times(&self) -> Vec<f64> {
+        let start = self.keys.first().map_or(0.0, |k| k.0);
+        self.keys.iter().map(|k| k.0 - start).collect()
+    }
+
     /// Duration in seconds (0 for a single keyframe).
     pub fn duration(&self) -> f64 {
         self.keys.last().map_or(0.0, |k| k.0) - self.keys.first().map_or(0.0, |k| k.0)

@@ -2,6 +2,7 @@
 //! against real files and the real command line (run in-process).
 
 mod bad_input;
+mod bench;
 mod cubes;
 mod extremes;
 mod holes;

@@ -2,8 +2,9 @@
 //!
 //! Builds `gen:island` (once; the file is reused on later runs), starts an
 //! embedded memory server on a loopback port, flies a client along a
-//! built-in path while pages stream, lets the last view refine, and writes
-//! the frames, a per-frame CSV and a short summary.
+//! built-in path while pages stream, lets the last view refine, sweeps the
+//! splat threshold against the 1-pixel reference (`farfield bench`) and
+//! writes the frames, a per-frame CSV, the sweep's report and a summary.
 
 use std::fmt::Write as _;
 use std::net::SocketAddr;
@@ -100,6 +101,40 @@ pub fn run(job: &DemoJob) -> anyhow::Result<DemoSummary> {
     };
     let (stats, settle) = fly(&mut viewer, &mut renderer, &fly_job, started)?;
     drop(viewer);
+    // A small sweep of the splat threshold, streamed, and its report: the
+    // trade-off between error and frame time of the built-in scene.
+    let sweep = crate::bench::BenchJob {
+        source: super::render::Source::Server {
+            url: url.clone(),
+            scene: "island".into(),
+        },
+        path: Some(CameraPath::from_keyframes(&[crate::path::Keyframe {
+            t: 0.0,
+            orbit: Some(crate::path::OrbitKey {
+                azimuth: 30.0,
+                elevation: 25.0,
+                distance: 1.6,
+            }),
+            eye: None,
+            target: None,
+            fov: None,
+        }])?),
+        mode: "spheres".into(),
+        param: "threshold".into(),
+        values: ["1", "2", "4", "8", "16"].map(String::from).to_vec(),
+        inputs: Vec::new(),
+        input_params: Vec::new(),
+        width: 320,
+        height: 180,
+        repeats: 3,
+        out: job.out.join("bench"),
+        timeout: Duration::from_secs(120),
+    };
+    crate::bench::run(&sweep, &mut renderer).context("the demo's sweep")?;
+    let report = crate::bench::report::write_report(
+        std::slice::from_ref(&sweep.out),
+        &job.out.join("report"),
+    )?;
     runtime
         .block_on(server.shutdown())
         .context("stopping the embedded server")?;
@@ -148,7 +183,12 @@ pub fn run(job: &DemoJob) -> anyhow::Result<DemoSummary> {
     }
     let _ = writeln!(
         text,
-        "files: frames/frame_NNNN.png, frames.csv, summary.txt"
+        "error against frame time (threshold 1 to 16 px): {}",
+        report.display()
+    );
+    let _ = writeln!(
+        text,
+        "files: frames/frame_NNNN.png, frames.csv, bench/ (bench.csv, progress.csv), report/index.html, summary.txt"
     );
     std::fs::write(job.out.join("summary.txt"), &text)?;
     Ok(DemoSummary {

@@ -1,0 +1,109 @@
+//! `farfield bench` and `report` end to end: a sweep over a small scene,
+//! streamed from a real server, its tables, plots and page.
+
+use std::net::SocketAddr;
+use std::time::Duration;
+
+use farfield_client::bench::rows::{ProgressRow, Row};
+use farfield_client::bench::{BenchJob, plots, report, rows, run};
+use farfield_client::commands::render::Source;
+use farfield_client::render::headless_or_skip;
+use farfield_server::import::{Params, load_input};
+use farfield_server::serve::{ServerConfig, start};
+use farfield_server::store::write_atomic;
+use farfield_tests::scratch;
+
+use crate::build;
+
+#[test]
+fn a_streamed_sweep_writes_tables_plots_and_a_report() {
+    let Some(mut renderer) = headless_or_skip(96, 72).unwrap() else {
+        return;
+    };
+    let dir = scratch("bench-sweep");
+    let scenes = dir.join("scenes");
+    std::fs::create_dir_all(&scenes).unwrap();
+    let mut params = Params::default();
+    params.set("size", 64);
+    params.set("trees", 2);
+    params.set("tree_triangles", 2000);
+    write_atomic(
+        &scenes.join("island.ff"),
+        &build(load_input("gen:island", &params).unwrap()),
+    )
+    .unwrap();
+    let rt = tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(2)
+        .enable_all()
+        .build()
+        .unwrap();
+    let server = rt
+        .block_on(start(ServerConfig::new(
+            &scenes,
+            SocketAddr::from(([127, 0, 0, 1], 0)),
+        )))
+        .unwrap();
+    let job = BenchJob {
+        source: Source::Server {
+            url: format!("http://{}", server.local_addr()),
+            scene: "island".into(),
+        },
+        path: None,
+        mode: "spheres".into(),
+        param: "threshold".into(),
+        values: vec!["1".into(), "8".into()],
+        inputs: Vec::new(),
+        input_params: Vec::new(),
+        width: 96,
+        height: 72,
+        repeats: 2,
+        out: dir.join("bench"),
+        timeout: Duration::from_secs(60),
+    };
+    let (table, progress) = run(&job, &mut renderer).unwrap();
+    // Two values x three built-in cameras.
+    assert_eq!(table.len(), 6);
+    for r in &table {
+        assert!(r.frame_ms > 0.0 && r.frame_ms_min <= r.frame_ms && r.frame_ms <= r.frame_ms_max);
+        assert!(r.bytes > 0 && !r.reference_empty);
+        if r.value == "1" {
+            // The reference is this very mode at 1 px.
+            assert!(r.psnr_db.is_infinite() && r.rmse == 0.0, "{r:?}");
+        } else {
+            assert!(r.psnr_db.is_finite() && r.rmse > 0.0, "{r:?}");
+        }
+    }
+    // Streaming: every view refined from nothing, error never worse at the end.
+    assert!(progress.len() >= 6, "{} progress frames", progress.len());
+    let first = progress
+        .iter()
+        .find(|p| p.value == "1" && p.camera == 0)
+        .unwrap();
+    let last = progress
+        .iter()
+        .rev()
+        .find(|p| p.value == "1" && p.camera == 0)
+        .unwrap();
+    assert!(last.rmse <= first.rmse && last.bytes >= first.bytes);
+    // The files are the tables, and they read back.
+    assert_eq!(
+        rows::read::<Row>(&job.out.join("bench.csv")).unwrap(),
+        table
+    );
+    assert_eq!(
+        rows::read::<ProgressRow>(&job.out.join("progress.csv"))
+            .unwrap()
+            .len(),
+        progress.len()
+    );
+    let page = report::write_report(std::slice::from_ref(&job.out), &dir.join("report")).unwrap();
+    let html = std::fs::read_to_string(page).unwrap();
+    for (file, _) in plots::ALL {
+        assert!(
+            html.contains(file) && dir.join("report").join(file).exists(),
+            "{file}"
+        );
+    }
+    assert!(html.contains("CPU") && html.contains(&renderer.adapter_description()));
+    rt.block_on(server.shutdown()).unwrap();
+}
