@@ -111,6 +111,9 @@ struct BenchArgs {
     /// PARAM=v1,v2,...: threshold or kernel (spheres), eps or coverage (cubes), full=all (geometry).
     #[arg(long)]
     sweep: String,
+    /// A setting held fixed while sweeping, e.g. kernel=square (repeatable).
+    #[arg(long = "set", value_name = "PARAM=VALUE")]
+    set: Vec<String>,
     /// The scene's input (files or gen: scenes): the geometry mode's triangles, and the reference.
     #[arg(long = "input")]
     inputs: Vec<String>,
@@ -419,6 +422,15 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 mode: args.mode,
                 param: param.to_owned(),
                 values,
+                fixed: args
+                    .set
+                    .iter()
+                    .map(|s| {
+                        s.split_once('=')
+                            .map(|(k, v)| (k.to_owned(), v.to_owned()))
+                            .with_context(|| format!("--set {s} is not PARAM=VALUE"))
+                    })
+                    .collect::<anyhow::Result<_>>()?,
                 inputs: args.inputs,
                 input_params: args.params,
                 width: args.size.0,

@@ -1,7 +1,6 @@
 //! `farfield bench` and `report` end to end: a sweep over a small scene,
 //! streamed from a real server, its tables, plots and page.
 
-use std::net::SocketAddr;
 use std::time::Duration;
 
 use farfield_client::bench::rows::{ProgressRow, Row};
@@ -9,7 +8,6 @@ use farfield_client::bench::{BenchJob, plots, report, rows, run};
 use farfield_client::commands::render::Source;
 use farfield_client::render::headless_or_skip;
 use farfield_server::import::{Params, load_input};
-use farfield_server::serve::{ServerConfig, start};
 use farfield_server::store::write_atomic;
 use farfield_tests::scratch;
 
@@ -32,26 +30,17 @@ fn a_streamed_sweep_writes_tables_plots_and_a_report() {
         &build(load_input("gen:island", &params).unwrap()),
     )
     .unwrap();
-    let rt = tokio::runtime::Builder::new_multi_thread()
-        .worker_threads(2)
-        .enable_all()
-        .build()
-        .unwrap();
-    let server = rt
-        .block_on(start(ServerConfig::new(
-            &scenes,
-            SocketAddr::from(([127, 0, 0, 1], 0)),
-        )))
-        .unwrap();
+    let (rt, server, url) = crate::serve_dir(&scenes);
     let job = BenchJob {
         source: Source::Server {
-            url: format!("http://{}", server.local_addr()),
+            url,
             scene: "island".into(),
         },
         path: None,
         mode: "spheres".into(),
         param: "threshold".into(),
         values: vec!["1".into(), "8".into()],
+        fixed: vec![("kernel".into(), "square".into())],
         inputs: Vec::new(),
         input_params: Vec::new(),
         width: 96,

@@ -2,7 +2,6 @@
 //! scenes, read back through the page parser, streamed by a real server
 //! and drawn by the real renderer against the full-geometry reference.
 
-use std::net::SocketAddr;
 use std::time::Duration;
 
 use farfield_client::args::CameraSpec;
@@ -21,7 +20,6 @@ use farfield_server::build::cubes::source::Source as Primitives;
 use farfield_server::build::cubes::{Composite, CubeOptions as BuildCubes, build_cubes};
 use farfield_server::import::{Params, load_input};
 use farfield_server::scene::{Geometry, Instance, Primitives as Prims, Scene};
-use farfield_server::serve::{ServerConfig, start};
 use farfield_server::store::write_atomic;
 use farfield_tests::{scratch, shared_data};
 use glam::{DAffine3, DVec3, Vec3};
@@ -115,18 +113,7 @@ fn streamed_cubes_at_tiny_eps_equal_the_geometry_image() {
     for (name, scene) in &scenes {
         write_atomic(&dir.join(format!("{name}.ff")), &cubes(scene.clone())).unwrap();
     }
-    let rt = tokio::runtime::Builder::new_multi_thread()
-        .worker_threads(2)
-        .enable_all()
-        .build()
-        .unwrap();
-    let server = rt
-        .block_on(start(ServerConfig::new(
-            &dir,
-            SocketAddr::from(([127, 0, 0, 1], 0)),
-        )))
-        .unwrap();
-    let url = format!("http://{}", server.local_addr());
+    let (rt, server, url) = crate::serve_dir(&dir);
     let spec = CameraSpec::Orbit {
         azimuth_deg: 30.0,
         elevation_deg: 10.0,
@@ -602,18 +589,7 @@ fn the_first_streamed_image_is_made_of_cubes() {
         &build_cubes(tree(8000), &options).unwrap().0,
     )
     .unwrap();
-    let rt = tokio::runtime::Builder::new_multi_thread()
-        .worker_threads(2)
-        .enable_all()
-        .build()
-        .unwrap();
-    let server = rt
-        .block_on(start(ServerConfig::new(
-            &dir,
-            SocketAddr::from(([127, 0, 0, 1], 0)),
-        )))
-        .unwrap();
-    let url = format!("http://{}", server.local_addr());
+    let (rt, server, url) = crate::serve_dir(&dir);
     let mut viewer =
         Viewer::open_remote(&url, "tree", SessionOptions::default(), 64 << 20).unwrap();
     let started = std::time::Instant::now();

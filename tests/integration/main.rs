@@ -55,3 +55,29 @@ pub fn write_and_open(file: &PagedFile, path: &Path) -> SceneFile {
     write_atomic(path, file).expect("write");
     SceneFile::open(path).expect("open")
 }
+
+/// A runtime and a memory server on a free loopback port serving the
+/// scenes in `dir`, with its base URL. Shut it down with
+/// `rt.block_on(server.shutdown())`.
+pub fn serve_dir(
+    dir: &Path,
+) -> (
+    tokio::runtime::Runtime,
+    farfield_server::serve::RunningServer,
+    String,
+) {
+    let rt = tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(2)
+        .enable_all()
+        .build()
+        .expect("runtime");
+    let config = farfield_server::serve::ServerConfig::new(
+        dir,
+        std::net::SocketAddr::from(([127, 0, 0, 1], 0)),
+    );
+    let server = rt
+        .block_on(farfield_server::serve::start(config))
+        .expect("server starts");
+    let url = format!("http://{}", server.local_addr());
+    (rt, server, url)
+}

@@ -48,6 +48,8 @@ pub struct BenchJob {
     pub mode: String,
     pub param: String,
     pub values: Vec<String>,
+    /// Settings held fixed during the sweep (`--set kernel=square`).
+    pub fixed: Vec<(String, String)>,
     /// The input geometry (files or `gen:` scenes), for the geometry mode
     /// and as the reference.
     pub inputs: Vec<String>,
@@ -66,6 +68,7 @@ pub struct BenchMeta {
     pub mode: String,
     pub param: String,
     pub values: Vec<String>,
+    pub fixed: Vec<(String, String)>,
     pub reference: String,
     pub adapter: String,
     pub cpu: String,
@@ -130,6 +133,8 @@ fn header_of(viewer: &mut Viewer, timeout: Duration) -> anyhow::Result<FileHeade
 /// its finest (spheres at 1 px, cubes at eps 0), fully refined.
 struct ReferenceRenderer {
     geometry: Option<Rc<Reference>>,
+    /// The fixed settings' style (a kernel, a coverage).
+    style: SplatStyle,
     viewer: Viewer,
     cuts: Cuts,
     label: String,
@@ -163,7 +168,7 @@ impl ReferenceRenderer {
                 renderer,
                 camera,
                 threshold,
-                &SplatStyle::default(),
+                &self.style,
                 &mut self.cuts,
                 &mut rgba,
             )?;
@@ -189,13 +194,14 @@ pub fn run(
         Some(Rc::new(Reference::load(&job.inputs, &job.input_params)?))
     };
     let mut mode = modes::mode_named(&job.mode, geometry.clone())?;
-    anyhow::ensure!(
-        mode.params().contains(&job.param.as_str()),
-        "mode {} sweeps {}, not {}",
-        mode.name(),
-        mode.params().join(" or "),
-        job.param
-    );
+    for p in std::iter::once(&job.param).chain(job.fixed.iter().map(|f| &f.0)) {
+        anyhow::ensure!(
+            mode.params().contains(&p.as_str()),
+            "mode {} takes {}, not {p}",
+            mode.name(),
+            mode.params().join(" or "),
+        );
+    }
     let mut reference_viewer = open(job)?;
     let header = header_of(&mut reference_viewer, job.timeout)?;
     let label = match (&geometry, header.kind) {
@@ -208,8 +214,10 @@ pub fn run(
         "mode {} needs --input",
         mode.name()
     );
+    let (_, style) = modes::hierarchy_settings(mode.name(), mode.params(), &job.fixed)?;
     let mut reference = ReferenceRenderer {
         geometry,
+        style,
         viewer: reference_viewer,
         cuts: Cuts::default(),
         label,
@@ -223,6 +231,8 @@ pub fn run(
     let mut file_viewer = if streamed { None } else { Some(open(job)?) };
     let (mut rows, mut progress) = (Vec::new(), Vec::new());
     for value in &job.values {
+        let mut settings = job.fixed.clone();
+        settings.push((job.param.clone(), value.clone()));
         for (k, camera) in cams.iter().enumerate() {
             let reference_rgba = &references[k];
             let error = |rgba: &[u8]| compare(reference_rgba, rgba, job.width, job.height, 8);
@@ -245,7 +255,7 @@ pub fn run(
                         viewer.pump(Duration::from_millis(20))?;
                         continue;
                     }
-                    let f = mode.frame(viewer, renderer, camera, &job.param, value)?;
+                    let f = mode.frame(viewer, renderer, camera, &settings)?;
                     let m = error(&f.rgba)?;
                     progress.push(ProgressRow {
                         mode: mode.name().to_owned(),
@@ -273,7 +283,7 @@ pub fn run(
             let mut touched = 0;
             for i in 0..=job.repeats.max(1) {
                 let t = Instant::now();
-                let f = mode.frame(viewer, renderer, camera, &job.param, value)?;
+                let f = mode.frame(viewer, renderer, camera, &settings)?;
                 let ms = t.elapsed().as_secs_f64() * 1e3;
                 if i > 0 {
                     last.push(ms, &f);
@@ -316,6 +326,7 @@ pub fn run(
         mode: mode.name().to_owned(),
         param: job.param.clone(),
         values: job.values.clone(),
+        fixed: job.fixed.clone(),
         reference: reference.label.clone(),
         adapter: renderer.adapter_description(),
         cpu: report::cpu_model(),

@@ -39,14 +39,14 @@ pub trait Mode {
     fn uses_hierarchy(&self) -> bool {
         true
     }
-    /// Draws `camera` with `param = value`.
+    /// Draws `camera` with `settings`, (parameter, value) pairs applied in
+    /// order: the fixed ones (`--set`), then the swept one.
     fn frame(
         &mut self,
         viewer: &mut Viewer,
         renderer: &mut Renderer,
         camera: &Camera,
-        param: &str,
-        value: &str,
+        settings: &[(String, String)],
     ) -> anyhow::Result<ModeFrame>;
 }
 
@@ -96,33 +96,9 @@ impl Mode for Hierarchical {
         viewer: &mut Viewer,
         renderer: &mut Renderer,
         camera: &Camera,
-        param: &str,
-        value: &str,
+        settings: &[(String, String)],
     ) -> anyhow::Result<ModeFrame> {
-        let mut style = SplatStyle::default();
-        let mut threshold = 1.0;
-        match param {
-            "threshold" | "eps" => {
-                threshold = value
-                    .parse::<f64>()
-                    .ok()
-                    .filter(|v| v.is_finite() && *v >= 0.0)
-                    .with_context(|| format!("{param} {value} is not a non-negative number"))?;
-            }
-            "kernel" => {
-                style.kernel = match value {
-                    "square" => Kernel::Square,
-                    "round" => Kernel::Round,
-                    _ => bail!("kernel {value} is not square or round"),
-                }
-            }
-            "coverage" => style.coverage = value.parse::<Coverage>().map_err(anyhow::Error::msg)?,
-            _ => bail!(
-                "mode {} sweeps {}, not {param}",
-                self.name,
-                self.params.join(" or ")
-            ),
-        }
+        let (threshold, style) = hierarchy_settings(self.name, self.params, settings)?;
         let mut rgba = Vec::new();
         let times = draw_frame(
             viewer,
@@ -152,6 +128,40 @@ impl Mode for Hierarchical {
     }
 }
 
+/// The threshold (or eps) and style that `settings` give a hierarchy mode;
+/// the bench's reference uses it too, so fixed settings (a kernel, a
+/// coverage) hold for the reference as for the sweep.
+pub fn hierarchy_settings(
+    mode: &str,
+    params: &[&str],
+    settings: &[(String, String)],
+) -> anyhow::Result<(f64, SplatStyle)> {
+    let mut style = SplatStyle::default();
+    let mut threshold = 1.0;
+    for (param, value) in settings {
+        let (param, value) = (param.as_str(), value.as_str());
+        match param {
+            "threshold" | "eps" => {
+                threshold = value
+                    .parse::<f64>()
+                    .ok()
+                    .filter(|v| v.is_finite() && *v >= 0.0)
+                    .with_context(|| format!("{param} {value} is not a non-negative number"))?;
+            }
+            "kernel" => {
+                style.kernel = match value {
+                    "square" => Kernel::Square,
+                    "round" => Kernel::Round,
+                    _ => bail!("kernel {value} is not square or round"),
+                }
+            }
+            "coverage" => style.coverage = value.parse::<Coverage>().map_err(anyhow::Error::msg)?,
+            _ => bail!("mode {mode} takes {}, not {param}", params.join(" or ")),
+        }
+    }
+    Ok((threshold, style))
+}
+
 /// Every triangle of the input, drawn once (the papers' "geometric time").
 struct Geometry {
     reference: std::rc::Rc<Reference>,
@@ -175,8 +185,7 @@ impl Mode for Geometry {
         _viewer: &mut Viewer,
         renderer: &mut Renderer,
         camera: &Camera,
-        _param: &str,
-        _value: &str,
+        _settings: &[(String, String)],
     ) -> anyhow::Result<ModeFrame> {
         let started = Instant::now();
         let mut vertices = Vec::new();

@@ -87,6 +87,41 @@ fn per_setting(rows: &[Row], x: impl Fn(&Row) -> f64) -> BTreeMap<String, Vec<(f
     out
 }
 
+/// Draws `series` (name -> points) as lines with dots and a legend on a
+/// chart built by `$chart` (a `build_cartesian_2d` result), with axis
+/// descriptions; errors go through `$err`.
+macro_rules! draw_lines {
+    ($chart:expr, $x_desc:expr, $y_desc:expr, $series:expr, $err:expr) => {{
+        let err = $err;
+        let mut chart = $chart.map_err(|e| err(&e))?;
+        chart
+            .configure_mesh()
+            .x_desc($x_desc)
+            .y_desc($y_desc)
+            .draw()
+            .map_err(|e| err(&e))?;
+        for (i, (name, pts)) in $series.iter().enumerate() {
+            let color = Palette99::pick(i).to_rgba();
+            chart
+                .draw_series(LineSeries::new(pts.iter().copied(), color.stroke_width(2)))
+                .map_err(|e| err(&e))?
+                .label(name.as_str())
+                .legend(move |(x, y)| {
+                    PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(2))
+                });
+            chart
+                .draw_series(pts.iter().map(|p| Circle::new(*p, 3, color.filled())))
+                .map_err(|e| err(&e))?;
+        }
+        chart
+            .configure_series_labels()
+            .background_style(WHITE.mix(0.85))
+            .border_style(BLACK)
+            .draw()
+            .map_err(|e| err(&e))?;
+    }};
+}
+
 /// One chart of named series; `log_x` for times and bytes.
 fn chart<DB: DrawingBackend>(
     root: &DrawingArea<DB, Shift>,
@@ -126,40 +161,22 @@ fn chart<DB: DrawingBackend>(
         .margin(12)
         .x_label_area_size(42)
         .y_label_area_size(56);
-    macro_rules! plot {
-        ($chart:expr) => {{
-            let mut chart = $chart.map_err(|e| err(&e))?;
-            chart
-                .configure_mesh()
-                .x_desc(x_desc)
-                .y_desc(y_desc)
-                .draw()
-                .map_err(|e| err(&e))?;
-            for (i, (name, pts)) in series.iter().enumerate() {
-                let color = Palette99::pick(i).to_rgba();
-                chart
-                    .draw_series(LineSeries::new(pts.iter().copied(), color.stroke_width(2)))
-                    .map_err(|e| err(&e))?
-                    .label(name.as_str())
-                    .legend(move |(x, y)| {
-                        PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(2))
-                    });
-                chart
-                    .draw_series(pts.iter().map(|p| Circle::new(*p, 3, color.filled())))
-                    .map_err(|e| err(&e))?;
-            }
-            chart
-                .configure_series_labels()
-                .background_style(WHITE.mix(0.85))
-                .border_style(BLACK)
-                .draw()
-                .map_err(|e| err(&e))?;
-        }};
-    }
     if log_x {
-        plot!(builder.build_cartesian_2d((x0..x1).log_scale(), y0..y1));
+        draw_lines!(
+            builder.build_cartesian_2d((x0..x1).log_scale(), y0..y1),
+            x_desc,
+            y_desc,
+            series,
+            err
+        );
     } else {
-        plot!(builder.build_cartesian_2d(x0..x1, y0..y1));
+        draw_lines!(
+            builder.build_cartesian_2d(x0..x1, y0..y1),
+            x_desc,
+            y_desc,
+            series,
+            err
+        );
     }
     root.present().map_err(|e| err(&e))?;
     Ok(())
@@ -283,38 +300,19 @@ fn threshold_chart<DB: DrawingBackend>(
     let y1 = pts.iter().map(|p| p.1).fold(10.0, f64::max) * 1.5;
     let err = |e: &dyn std::fmt::Display| anyhow!("plotting {}: {e}", ALL[3].1);
     root.fill(&WHITE).map_err(|e| err(&e))?;
-    let mut chart = ChartBuilder::on(root)
+    let chart = ChartBuilder::on(root)
         .caption(ALL[3].1, ("sans-serif", 18))
         .margin(12)
         .x_label_area_size(42)
         .y_label_area_size(56)
-        .build_cartesian_2d((0.7..x1).log_scale(), (y0..y1).log_scale())
-        .map_err(|e| err(&e))?;
-    chart
-        .configure_mesh()
-        .x_desc("threshold (spheres) or eps (cubes), pixels")
-        .y_desc("frame time, ms")
-        .draw()
-        .map_err(|e| err(&e))?;
-    for (i, (name, pts)) in series.iter().enumerate() {
-        let color = Palette99::pick(i).to_rgba();
-        chart
-            .draw_series(LineSeries::new(pts.iter().copied(), color.stroke_width(2)))
-            .map_err(|e| err(&e))?
-            .label(name.as_str())
-            .legend(move |(x, y)| {
-                PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(2))
-            });
-        chart
-            .draw_series(pts.iter().map(|p| Circle::new(*p, 3, color.filled())))
-            .map_err(|e| err(&e))?;
-    }
-    chart
-        .configure_series_labels()
-        .background_style(WHITE.mix(0.85))
-        .border_style(BLACK)
-        .draw()
-        .map_err(|e| err(&e))?;
+        .build_cartesian_2d((0.7..x1).log_scale(), (y0..y1).log_scale());
+    draw_lines!(
+        chart,
+        "threshold (spheres) or eps (cubes), pixels",
+        "frame time, ms",
+        series,
+        err
+    );
     root.present().map_err(|e| err(&e))?;
     Ok(())
 }

@@ -78,14 +78,20 @@ pub fn write_report(dirs: &[PathBuf], out: &Path) -> anyhow::Result<PathBuf> {
         std::thread::available_parallelism().map_or(1, |n| n.get())
     );
     for m in &metas {
+        let fixed = if m.fixed.is_empty() {
+            "defaults".to_owned()
+        } else {
+            let pairs: Vec<String> = m.fixed.iter().map(|(k, v)| format!("{k}={v}")).collect();
+            pairs.join(", ")
+        };
         let _ = writeln!(
             html,
-            "<li>{} mode {} sweeping {} = {} on {}, {}x{}, {} repeats, {} cameras, reference: {}; adapter: {}; CPU {} ({} cores)</li>",
+            "<li>{} mode {} sweeping {} = {} with {}, {}x{}, {} repeats, {} cameras, reference: {}; adapter: {}; CPU {} ({} cores)</li>",
             esc(&m.scene),
             esc(&m.mode),
             esc(&m.param),
             esc(&m.values.join(", ")),
-            esc(&m.scene),
+            esc(&fixed),
             m.width,
             m.height,
             m.repeats,

@@ -122,6 +122,7 @@ pub fn run(job: &DemoJob) -> anyhow::Result<DemoSummary> {
         mode: "spheres".into(),
         param: "threshold".into(),
         values: ["1", "2", "4", "8", "16"].map(String::from).to_vec(),
+        fixed: Vec::new(),
         inputs: Vec::new(),
         input_params: Vec::new(),
         width: 320,

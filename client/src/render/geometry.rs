@@ -24,6 +24,7 @@ use super::RenderOutput;
 use super::instances::DEFAULT_COLOR;
 use super::renderer::Renderer;
 use super::target::{COLOR_FORMAT, DEPTH_FORMAT};
+use super::uniform::UniformBinding;
 
 /// How cube faces use their coverage.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
@@ -113,38 +114,15 @@ impl GeometryPipelines {
     pub(crate) fn new(device: &wgpu::Device) -> anyhow::Result<Self> {
         let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
         let shader = device.create_shader_module(wgpu::include_wgsl!("geometry.wgsl"));
-        let uniform = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("farfield geometry uniform"),
-            size: std::mem::size_of::<GeometryUniform>() as u64,
-            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
-        let bind_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-            label: Some("farfield geometry"),
-            entries: &[wgpu::BindGroupLayoutEntry {
-                binding: 0,
-                visibility: wgpu::ShaderStages::VERTEX_FRAGMENT,
-                ty: wgpu::BindingType::Buffer {
-                    ty: wgpu::BufferBindingType::Uniform,
-                    has_dynamic_offset: false,
-                    min_binding_size: None,
-                },
-                count: None,
-            }],
-        });
-        let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("farfield geometry"),
-            layout: &bind_layout,
-            entries: &[wgpu::BindGroupEntry {
-                binding: 0,
-                resource: uniform.as_entire_binding(),
-            }],
-        });
-        let layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-            label: Some("farfield geometry"),
-            bind_group_layouts: &[Some(&bind_layout)],
-            immediate_size: 0,
-        });
+        let UniformBinding {
+            buffer: uniform,
+            bind_group,
+            pipeline_layout: layout,
+        } = UniformBinding::new(
+            device,
+            std::mem::size_of::<GeometryUniform>() as u64,
+            "farfield geometry",
+        );
         let vertex_attributes =
             wgpu::vertex_attr_array![0 => Float32x3, 1 => Snorm16x4, 2 => Unorm8x4];
         let face_attributes =

@@ -23,6 +23,7 @@ mod renderer;
 mod target;
 #[cfg(test)]
 mod tests;
+mod uniform;
 
 pub use adapter::{ALLOW_NO_GPU_ENV, BACKEND_ENV};
 pub use geometry::{Coverage, GpuVertex, WorldCorner, pack_leaves, pack_triangle};

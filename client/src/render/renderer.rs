@@ -12,6 +12,7 @@ use super::adapter::{self, Gpu};
 use super::geometry::GeometryPipelines;
 use super::instances::{self, GpuSplat, STRIDE};
 use super::target::{COLOR_FORMAT, DEPTH_FORMAT, Target};
+use super::uniform::UniformBinding;
 use super::{Kernel, RenderOutput, SplatStyle};
 
 /// Smallest radius a splat is drawn with, in pixels: a disc this large
@@ -68,38 +69,15 @@ impl Renderer {
         );
         let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
         let shader = device.create_shader_module(wgpu::include_wgsl!("splat.wgsl"));
-        let uniform = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("farfield frame uniform"),
-            size: std::mem::size_of::<FrameUniform>() as u64,
-            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
-        let bind_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-            label: Some("farfield frame"),
-            entries: &[wgpu::BindGroupLayoutEntry {
-                binding: 0,
-                visibility: wgpu::ShaderStages::VERTEX_FRAGMENT,
-                ty: wgpu::BindingType::Buffer {
-                    ty: wgpu::BufferBindingType::Uniform,
-                    has_dynamic_offset: false,
-                    min_binding_size: None,
-                },
-                count: None,
-            }],
-        });
-        let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("farfield frame"),
-            layout: &bind_layout,
-            entries: &[wgpu::BindGroupEntry {
-                binding: 0,
-                resource: uniform.as_entire_binding(),
-            }],
-        });
-        let layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-            label: Some("farfield splats"),
-            bind_group_layouts: &[Some(&bind_layout)],
-            immediate_size: 0,
-        });
+        let UniformBinding {
+            buffer: uniform,
+            bind_group,
+            pipeline_layout: layout,
+        } = UniformBinding::new(
+            device,
+            std::mem::size_of::<FrameUniform>() as u64,
+            "farfield splats",
+        );
         let attributes = wgpu::vertex_attr_array![
             0 => Float32x3, 1 => Float32, 2 => Snorm16x4, 3 => Unorm8x4
         ];
