@@ -204,6 +204,16 @@ pub fn run(
     }
     let mut reference_viewer = open(job)?;
     let header = header_of(&mut reference_viewer, job.timeout)?;
+    if let Some(kind) = mode.kind() {
+        anyhow::ensure!(
+            kind == header.kind,
+            "mode {} draws {} hierarchies, and {} is a {} hierarchy",
+            mode.name(),
+            kind.name(),
+            scene_name(&job.source),
+            header.kind.name()
+        );
+    }
     let label = match (&geometry, header.kind) {
         (Some(_), _) => format!("input geometry ({})", job.inputs.join(" ")),
         (None, HierarchyKind::Cubes) => "the cube hierarchy's geometry (eps 0)".to_owned(),

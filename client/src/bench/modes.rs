@@ -7,6 +7,7 @@ use std::time::Instant;
 
 use anyhow::{Context, bail};
 use farfield_protocol::camera::Camera;
+use farfield_protocol::file::HierarchyKind;
 
 use crate::commands::render::{Cuts, draw_frame};
 use crate::reference::Reference;
@@ -39,6 +40,10 @@ pub trait Mode {
     fn uses_hierarchy(&self) -> bool {
         true
     }
+    /// The hierarchy kind it draws, when it needs one kind.
+    fn kind(&self) -> Option<HierarchyKind> {
+        None
+    }
     /// Draws `camera` with `settings`, (parameter, value) pairs applied in
     /// order: the fixed ones (`--set`), then the swept one.
     fn frame(
@@ -59,11 +64,13 @@ pub fn mode_named(
     Ok(match name {
         "spheres" => Box::new(Hierarchical {
             name: "spheres",
+            kind: HierarchyKind::Spheres,
             params: &["threshold", "kernel"],
             cuts: Cuts::default(),
         }),
         "cubes" => Box::new(Hierarchical {
             name: "cubes",
+            kind: HierarchyKind::Cubes,
             params: &["eps", "coverage"],
             cuts: Cuts::default(),
         }),
@@ -78,6 +85,7 @@ pub fn mode_named(
 /// frame, with the swept setting.
 struct Hierarchical {
     name: &'static str,
+    kind: HierarchyKind,
     params: &'static [&'static str],
     cuts: Cuts,
 }
@@ -89,6 +97,10 @@ impl Mode for Hierarchical {
 
     fn params(&self) -> &[&'static str] {
         self.params
+    }
+
+    fn kind(&self) -> Option<HierarchyKind> {
+        Some(self.kind)
     }
 
     fn frame(
