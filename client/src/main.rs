@@ -92,16 +92,34 @@ enum Command {
     },
 }
 
+/// Where a scene comes from: a memory server, or a file.
 #[derive(Debug, clap::Args)]
-struct BenchArgs {
-    /// Memory server, e.g. http://127.0.0.1:7878 (the views then stream).
+struct SourceArgs {
+    /// Memory server, e.g. http://127.0.0.1:7878 (pages then stream).
     #[arg(long, requires = "scene", conflicts_with = "file")]
     server: Option<String>,
+    /// Scene name on the server.
     #[arg(long)]
     scene: Option<String>,
-    /// A paged file, read whole.
+    /// Read a paged file directly (everything resident, no server).
     #[arg(long, required_unless_present = "server")]
     file: Option<PathBuf>,
+}
+
+impl SourceArgs {
+    fn into_source(self) -> anyhow::Result<Source> {
+        Ok(match (self.server, self.scene, self.file) {
+            (Some(url), Some(scene), None) => Source::Server { url, scene },
+            (None, _, Some(path)) => Source::File(path),
+            _ => anyhow::bail!("give --server URL --scene NAME, or --file FILE"),
+        })
+    }
+}
+
+#[derive(Debug, clap::Args)]
+struct BenchArgs {
+    #[command(flatten)]
+    source: SourceArgs,
     /// Cameras: the keyframes of this path (JSON); default an orbit at 1.75, 3.5 and 7 radii.
     #[arg(long)]
     path: Option<PathBuf>,
@@ -173,15 +191,8 @@ enum KernelArg {
 
 #[derive(Debug, clap::Args)]
 struct RenderArgs {
-    /// Memory server, e.g. http://127.0.0.1:7878.
-    #[arg(long, requires = "scene", conflicts_with = "file")]
-    server: Option<String>,
-    /// Scene name on the server.
-    #[arg(long)]
-    scene: Option<String>,
-    /// Read a paged file directly (everything resident, no server).
-    #[arg(long, required_unless_present = "server")]
-    file: Option<PathBuf>,
+    #[command(flatten)]
+    source: SourceArgs,
     /// eye=x,y,z,target=x,y,z,fov=DEG (world units).
     #[arg(long, value_parser = parse_camera, conflicts_with = "orbit")]
     camera: Option<CameraSpec>,
@@ -239,11 +250,7 @@ struct RenderArgs {
 }
 
 fn render(args: RenderArgs) -> anyhow::Result<()> {
-    let source = match (args.server, args.scene, args.file) {
-        (Some(url), Some(scene), None) => Source::Server { url, scene },
-        (None, _, Some(path)) => Source::File(path),
-        _ => anyhow::bail!("give --server URL --scene NAME, or --file FILE"),
-    };
+    let source = args.source.into_source()?;
     let until = match (args.frames, args.ms) {
         (Some(n), _) => Until::Frames(n.max(1)),
         (_, Some(ms)) => Until::Millis(ms),
@@ -397,11 +404,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         } => compare(a, b, tolerance, json),
         Command::Render(args) => render(*args),
         Command::Bench(args) => {
-            let source = match (args.server, args.scene, args.file) {
-                (Some(url), Some(scene), None) => Source::Server { url, scene },
-                (None, _, Some(path)) => Source::File(path),
-                _ => anyhow::bail!("give --server URL --scene NAME, or --file FILE"),
-            };
+            let source = args.source.into_source()?;
             let (param, values) = args
                 .sweep
                 .split_once('=')

@@ -44,15 +44,10 @@ impl Reference {
             for t in &tris {
                 for c in t {
                     out.positions.push(c.position);
-                    out.normals.push(c.normal.map_or([0; 4], |n| {
-                        let q = |x: f32| (x.clamp(-1.0, 1.0) * 32767.0).round() as i16;
-                        [q(n.x), q(n.y), q(n.z), i16::MAX]
-                    }));
-                    let rgb = c
-                        .color
-                        .to_array()
-                        .map(|v| (v.clamp(0.0, 1.0) * 255.0).round() as u8);
-                    out.colors.push([rgb[0], rgb[1], rgb[2], 255]);
+                    out.normals
+                        .push(c.normal.map_or([0; 4], crate::render::snorm4));
+                    let [r, g, b] = c.rgb8();
+                    out.colors.push([r, g, b, 255]);
                 }
             }
         }

@@ -16,7 +16,7 @@ use crate::camera::{Camera, Containment, View};
 use crate::cube_codec::{Face, Rgba8};
 use crate::file::HierarchyKind;
 use crate::hierarchy::{Hierarchy, ResidentPage};
-use crate::traverse::WantedPage;
+use crate::traverse::{PageTracker, WantedPage, want_page_zero};
 
 /// Knobs of one cube traversal.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -131,22 +131,14 @@ pub fn traverse_cubes_into(
         return;
     }
     if h.page(0).is_none() {
-        cut.wanted.push(WantedPage {
-            page: 0,
-            priority: f64::INFINITY,
-        });
+        want_page_zero(&mut cut.wanted);
         return;
     }
     let half = h.header.root_radius;
     let view = camera.view(half * options.near_fraction);
     let cluster = u32::from(h.header.cluster.max(1));
     let cluster_levels = cluster.trailing_zeros();
-    let mut touched = if options.record_pages {
-        vec![false; h.header.pages.len()]
-    } else {
-        Vec::new()
-    };
-    let mut wanted = std::collections::HashMap::<u32, f64>::new();
+    let mut pages = PageTracker::new(h.header.pages.len(), options.record_pages);
     let mut stack = vec![Item {
         page: 0,
         local: 0,
@@ -166,9 +158,7 @@ pub fn traverse_cubes_into(
             continue;
         };
         cut.visited += 1;
-        if let Some(t) = touched.get_mut(item.page as usize) {
-            *t = true;
-        }
+        pages.touch(item.page);
         let center = item.min + DVec3::splat(item.edge * 0.5);
         let bounding_radius = item.edge * 0.5 * 3f64.sqrt();
         if !item.inside {
@@ -219,9 +209,7 @@ pub fn traverse_cubes_into(
         let Some((child_page_index, child_page)) = resident else {
             draw_cube(h, page, item, &view, options, cluster, cluster_levels, cut);
             if let Some(i) = h.header.page_of(first) {
-                let priority = size.min(1e9) / (1.0 + view.distance_from_center(center));
-                let entry = wanted.entry(i as u32).or_insert(0.0);
-                *entry = entry.max(priority);
+                pages.want(i as u32, size, view.distance_from_center(center));
             }
             continue;
         };
@@ -235,15 +223,7 @@ pub fn traverse_cubes_into(
             view.eye,
         );
     }
-    cut.touched_pages
-        .extend((0..touched.len() as u32).filter(|&p| touched[p as usize]));
-    cut.wanted.extend(
-        wanted
-            .into_iter()
-            .map(|(page, priority)| WantedPage { page, priority }),
-    );
-    cut.wanted
-        .sort_by(|a, b| b.priority.total_cmp(&a.priority).then(a.page.cmp(&b.page)));
+    pages.finish(&mut cut.touched_pages, &mut cut.wanted);
 }
 
 /// Projected size in pixels of an edge `edge` at the depth of `center`.

@@ -97,6 +97,32 @@ pub struct PageEntry {
     pub checksum: u32,
 }
 
+impl PageEntry {
+    /// The directory entry of an encoded page (`length` bytes, checksum
+    /// `checksum`); its offset is set by [`place_pages`].
+    pub fn of(header: &crate::page::PageHeader, length: usize, checksum: u32) -> Self {
+        Self {
+            offset: 0,
+            length: length as u32,
+            node_count: header.node_count,
+            first_node: header.first_node,
+            first_child: header.first_child,
+            level_min: header.level_min,
+            level_max: header.level_max,
+            checksum,
+        }
+    }
+}
+
+/// Sets each entry's offset: pages follow the header, in order.
+pub fn place_pages(entries: &mut [PageEntry]) {
+    let mut offset = FileHeader::encoded_len(entries.len()) as u64;
+    for e in entries {
+        e.offset = offset;
+        offset += u64::from(e.length);
+    }
+}
+
 /// Everything a reader needs before it touches a page.
 #[derive(Debug, Clone, PartialEq)]
 pub struct FileHeader {

@@ -33,6 +33,62 @@ pub struct WantedPage {
     pub priority: f64,
 }
 
+/// The pages one traversal touched and wished for: what both hierarchy
+/// kinds' traversals report besides what they draw.
+#[derive(Debug)]
+pub(crate) struct PageTracker {
+    /// Per page, whether the traversal read it (empty when not recorded).
+    touched: Vec<bool>,
+    /// Wanted page -> its highest priority.
+    wanted: std::collections::HashMap<u32, f64>,
+}
+
+impl PageTracker {
+    pub fn new(pages: usize, record_touched: bool) -> Self {
+        Self {
+            touched: if record_touched {
+                vec![false; pages]
+            } else {
+                Vec::new()
+            },
+            wanted: std::collections::HashMap::new(),
+        }
+    }
+
+    pub fn touch(&mut self, page: u32) {
+        if let Some(t) = self.touched.get_mut(page as usize) {
+            *t = true;
+        }
+    }
+
+    /// Wishes for `page` with a priority from the node that needed it:
+    /// projected size, discounted off-centre.
+    pub fn want(&mut self, page: u32, size_px: f64, off_center: f64) {
+        let priority = size_px.min(1e9) / (1.0 + off_center);
+        let entry = self.wanted.entry(page).or_insert(0.0);
+        *entry = entry.max(priority);
+    }
+
+    /// Writes the touched pages and the wishes, most urgent first.
+    pub fn finish(self, touched: &mut Vec<u32>, wanted: &mut Vec<WantedPage>) {
+        touched.extend((0..self.touched.len() as u32).filter(|&p| self.touched[p as usize]));
+        wanted.extend(
+            self.wanted
+                .into_iter()
+                .map(|(page, priority)| WantedPage { page, priority }),
+        );
+        wanted.sort_by(|a, b| b.priority.total_cmp(&a.priority).then(a.page.cmp(&b.page)));
+    }
+}
+
+/// The wish when not even page 0 is resident.
+pub(crate) fn want_page_zero(wanted: &mut Vec<WantedPage>) {
+    wanted.push(WantedPage {
+        page: 0,
+        priority: f64::INFINITY,
+    });
+}
+
 /// Knobs of one traversal.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct TraverseOptions {
@@ -99,11 +155,7 @@ pub fn traverse_into(h: &Hierarchy, camera: &Camera, options: &TraverseOptions, 
     cut.frustum_culled = 0;
     cut.backface_culled = 0;
     cut.touched_pages.clear();
-    let mut touched = if options.record_pages {
-        vec![false; h.header.pages.len()]
-    } else {
-        Vec::new()
-    };
+    let mut pages = PageTracker::new(h.header.pages.len(), options.record_pages);
     // Table lookups hoisted out of the loop (each accessor checks a OnceLock).
     let spheres = sphere_codec::sphere_table();
     let normals = sphere_codec::normal_table();
@@ -112,10 +164,7 @@ pub fn traverse_into(h: &Hierarchy, camera: &Camera, options: &TraverseOptions, 
         (c + step.offset * r, step.radius * r)
     };
     if h.page(0).is_none() {
-        cut.wanted.push(WantedPage {
-            page: 0,
-            priority: f64::INFINITY,
-        });
+        want_page_zero(&mut cut.wanted);
         return;
     }
     let threshold = options.threshold_px.max(0.0);
@@ -136,15 +185,12 @@ pub fn traverse_into(h: &Hierarchy, camera: &Camera, options: &TraverseOptions, 
         stack[0].center = c;
         stack[0].radius = r;
     }
-    let mut wanted = std::collections::HashMap::<u32, f64>::new();
     while let Some(mut item) = stack.pop() {
         let Some(page) = h.page(item.page as usize) else {
             continue;
         };
         cut.visited += 1;
-        if let Some(t) = touched.get_mut(item.page as usize) {
-            *t = true;
-        }
+        pages.touch(item.page);
         if !item.inside {
             match view.classify(item.center, item.radius) {
                 Containment::Outside => {
@@ -193,9 +239,7 @@ pub fn traverse_into(h: &Hierarchy, camera: &Camera, options: &TraverseOptions, 
                     None => {
                         draw = true;
                         let off_center = view.distance_from_center(item.center);
-                        let priority = size.min(1e9) / (1.0 + off_center);
-                        let entry = wanted.entry(child_page_index as u32).or_insert(0.0);
-                        *entry = entry.max(priority);
+                        pages.want(child_page_index as u32, size, off_center);
                     }
                 },
                 None => draw = true,
@@ -214,15 +258,7 @@ pub fn traverse_into(h: &Hierarchy, camera: &Camera, options: &TraverseOptions, 
             });
         }
     }
-    cut.touched_pages
-        .extend((0..touched.len() as u32).filter(|&p| touched[p as usize]));
-    cut.wanted.extend(
-        wanted
-            .into_iter()
-            .map(|(page, priority)| WantedPage { page, priority }),
-    );
-    cut.wanted
-        .sort_by(|a, b| b.priority.total_cmp(&a.priority).then(a.page.cmp(&b.page)));
+    pages.finish(&mut cut.touched_pages, &mut cut.wanted);
 }
 
 enum Facing {

@@ -40,6 +40,19 @@ fn tree(triangles: u32) -> Scene {
     load_input("gen:tree", &p).unwrap()
 }
 
+/// A generated tree of `triangles`, and the bunny when the shared data is there.
+fn tree_and_bunny(triangles: u32) -> Vec<(&'static str, Scene)> {
+    let mut scenes = vec![("tree", tree(triangles))];
+    if let Some(data) = shared_data() {
+        let bunny = data.join("stanford-bunny.obj");
+        scenes.push((
+            "bunny",
+            load_input(bunny.to_str().unwrap(), &Params::default()).unwrap(),
+        ));
+    }
+    scenes
+}
+
 fn orbit(h: &Hierarchy, azimuth: f64, distance: f64) -> Camera {
     let (center, radius) = farfield_client::args::scene_sphere(&h.header);
     Camera::orbit(center, radius, azimuth, 10.0, distance, SIZE.0, SIZE.1)
@@ -102,14 +115,7 @@ fn streamed_cubes_at_tiny_eps_equal_the_geometry_image() {
         return;
     };
     let dir = scratch("cubes-stream");
-    let mut scenes = vec![("tree", tree(8000))];
-    if let Some(data) = shared_data() {
-        let bunny = data.join("stanford-bunny.obj");
-        scenes.push((
-            "bunny",
-            load_input(bunny.to_str().unwrap(), &Params::default()).unwrap(),
-        ));
-    }
+    let scenes = tree_and_bunny(8000);
     for (name, scene) in &scenes {
         write_atomic(&dir.join(format!("{name}.ff")), &cubes(scene.clone())).unwrap();
     }
@@ -180,14 +186,7 @@ fn one_pixel_eps_stays_above_the_error_floor() {
     let Some(mut renderer) = headless_or_skip(SIZE.0, SIZE.1).unwrap() else {
         return;
     };
-    let mut scenes = vec![("tree", tree(20000))];
-    if let Some(data) = shared_data() {
-        let bunny = data.join("stanford-bunny.obj");
-        scenes.push((
-            "bunny",
-            load_input(bunny.to_str().unwrap(), &Params::default()).unwrap(),
-        ));
-    }
+    let scenes = tree_and_bunny(20000);
     for (name, scene) in &scenes {
         let h = resident(&cubes(scene.clone()));
         for distance in [3.5, 7.0, 14.0] {

@@ -238,7 +238,6 @@ pub fn run(
         references.push(reference.image(renderer, c, job.timeout)?);
     }
     let streamed = matches!(job.source, Source::Server { .. }) && mode.uses_hierarchy();
-    let mut file_viewer = if streamed { None } else { Some(open(job)?) };
     let (mut rows, mut progress) = (Vec::new(), Vec::new());
     for value in &job.values {
         let mut settings = job.fixed.clone();
@@ -246,13 +245,14 @@ pub fn run(
         for (k, camera) in cams.iter().enumerate() {
             let reference_rgba = &references[k];
             let error = |rgba: &[u8]| compare(reference_rgba, rgba, job.width, job.height, 8);
+            // A streamed view starts from nothing in a fresh session; a
+            // file (or geometry) reuses the reference's resident pages.
             let mut session;
-            let viewer = match file_viewer.as_mut() {
-                Some(v) => v,
-                None => {
-                    session = open(job)?;
-                    &mut session
-                }
+            let viewer = if streamed {
+                session = open(job)?;
+                &mut session
+            } else {
+                &mut reference.viewer
             };
             if streamed {
                 // Refine from nothing, recording every frame.

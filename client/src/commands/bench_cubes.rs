@@ -51,20 +51,12 @@ pub struct Timing {
 }
 
 impl Timing {
-    fn of(mut samples: Vec<f64>) -> Self {
-        samples.sort_by(f64::total_cmp);
-        let n = samples.len();
-        let median = if n == 0 {
-            f64::NAN
-        } else if n % 2 == 1 {
-            samples[n / 2]
-        } else {
-            (samples[n / 2 - 1] + samples[n / 2]) * 0.5
-        };
+    fn of(samples: Vec<f64>) -> Self {
+        let extreme = |pick: fn(f64, f64) -> f64| samples.iter().copied().reduce(pick);
         Self {
-            median_ms: median,
-            min_ms: samples.first().copied().unwrap_or(f64::NAN),
-            max_ms: samples.last().copied().unwrap_or(f64::NAN),
+            median_ms: crate::bench::median(&samples),
+            min_ms: extreme(f64::min).unwrap_or(f64::NAN),
+            max_ms: extreme(f64::max).unwrap_or(f64::NAN),
         }
     }
 }

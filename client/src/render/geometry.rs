@@ -21,9 +21,9 @@ use farfield_protocol::shading;
 use glam::{DVec3, Vec3};
 
 use super::RenderOutput;
-use super::instances::DEFAULT_COLOR;
+use super::instances::{DEFAULT_COLOR, snorm16};
 use super::renderer::Renderer;
-use super::target::{COLOR_FORMAT, DEPTH_FORMAT};
+use super::target::{color_target, depth_test};
 use super::uniform::UniformBinding;
 
 /// How cube faces use their coverage.
@@ -147,23 +147,13 @@ impl GeometryPipelines {
                     topology,
                     ..Default::default()
                 },
-                depth_stencil: Some(wgpu::DepthStencilState {
-                    format: DEPTH_FORMAT,
-                    depth_write_enabled: Some(depth_write),
-                    depth_compare: Some(wgpu::CompareFunction::Greater),
-                    stencil: Default::default(),
-                    bias: Default::default(),
-                }),
+                depth_stencil: Some(depth_test(depth_write)),
                 multisample: Default::default(),
                 fragment: Some(wgpu::FragmentState {
                     module: &shader,
                     entry_point: Some(fs),
                     compilation_options: Default::default(),
-                    targets: &[Some(wgpu::ColorTargetState {
-                        format: COLOR_FORMAT,
-                        blend,
-                        write_mask: wgpu::ColorWrites::ALL,
-                    })],
+                    targets: &[color_target(blend)],
                 }),
                 multiview_mask: None,
                 cache: None,
@@ -260,26 +250,9 @@ pub fn pack_leaves(h: &Hierarchy, cut: &CubeCut, eye: DVec3, out: &mut Vec<GpuVe
     }
 }
 
-/// One corner of a world-space triangle, for [`pack_triangle`].
-#[derive(Debug, Clone, Copy)]
-pub struct WorldCorner {
-    pub position: DVec3,
-    pub normal: Option<Vec3>,
-    pub color: [u8; 3],
-}
-
-/// A world-space triangle, camera-relative, appended to `out`.
-pub fn pack_triangle(t: &[WorldCorner; 3], eye: DVec3, out: &mut Vec<GpuVertex>) {
-    out.extend(t.map(|c| GpuVertex {
-        position: (c.position - eye).as_vec3().to_array(),
-        normal: c.normal.map_or([0; 4], snorm4),
-        color: rgb4(c.color),
-    }));
-}
-
-fn snorm4(n: Vec3) -> [i16; 4] {
-    let q = |x: f32| (x.clamp(-1.0, 1.0) * 32767.0).round() as i16;
-    [q(n.x), q(n.y), q(n.z), i16::MAX]
+/// A unit normal as the shaders read it: snorm16, w = 1 for "present".
+pub(crate) fn snorm4(n: Vec3) -> [i16; 4] {
+    [snorm16(n.x), snorm16(n.y), snorm16(n.z), i16::MAX]
 }
 
 fn rgb4(c: [u8; 3]) -> [u8; 4] {
@@ -287,23 +260,23 @@ fn rgb4(c: [u8; 3]) -> [u8; 4] {
 }
 
 fn pack_faces(faces: &[FaceDraw], eye: DVec3, coverage: Coverage, out: &mut Vec<GpuFace>) {
-    out.clear();
-    out.extend(faces.iter().map(|f| GpuFace {
+    let gpu = |f: &FaceDraw| GpuFace {
         min_corner: (f.min - eye).as_vec3().to_array(),
         edge: f.edge as f32,
         face: f.face.index() as u32,
         rgba: f.rgba,
-    }));
+    };
+    out.clear();
     if coverage == Coverage::Alpha {
         // Back to front, so each face blends over what lies behind it.
-        let mut keyed: Vec<(f64, GpuFace)> = faces
+        let mut order: Vec<(f64, &FaceDraw)> = faces
             .iter()
-            .zip(out.iter())
-            .map(|(f, g)| (f.center().distance_squared(eye), *g))
+            .map(|f| (f.center().distance_squared(eye), f))
             .collect();
-        keyed.sort_by(|a, b| b.0.total_cmp(&a.0));
-        out.clear();
-        out.extend(keyed.into_iter().map(|(_, g)| g));
+        order.sort_by(|a, b| b.0.total_cmp(&a.0));
+        out.extend(order.into_iter().map(|(_, f)| gpu(f)));
+    } else {
+        out.extend(faces.iter().map(gpu));
     }
 }
 

@@ -69,7 +69,7 @@ pub(crate) fn pack(view: &View, splats: &[Splat], out: &mut Vec<GpuSplat>) -> f6
     nearest.max(farthest * 1e-6).max(f64::MIN_POSITIVE)
 }
 
-fn snorm16(x: f32) -> i16 {
+pub(crate) fn snorm16(x: f32) -> i16 {
     // `as` saturates and maps NaN to 0.
     (x.clamp(-1.0, 1.0) * 32767.0).round() as i16
 }

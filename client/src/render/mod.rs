@@ -26,7 +26,8 @@ mod tests;
 mod uniform;
 
 pub use adapter::{ALLOW_NO_GPU_ENV, BACKEND_ENV};
-pub use geometry::{Coverage, GpuVertex, WorldCorner, pack_leaves, pack_triangle};
+pub(crate) use geometry::snorm4;
+pub use geometry::{Coverage, GpuVertex, pack_leaves};
 pub use instances::DEFAULT_COLOR;
 pub use renderer::{MIN_RADIUS_PX, Renderer};
 

@@ -11,7 +11,7 @@ use glam::{DVec3, Vec3};
 use super::adapter::{self, Gpu};
 use super::geometry::GeometryPipelines;
 use super::instances::{self, GpuSplat, STRIDE};
-use super::target::{COLOR_FORMAT, DEPTH_FORMAT, Target};
+use super::target::{Target, color_target, depth_test};
 use super::uniform::UniformBinding;
 use super::{Kernel, RenderOutput, SplatStyle};
 
@@ -98,23 +98,13 @@ impl Renderer {
                 topology: wgpu::PrimitiveTopology::TriangleStrip,
                 ..Default::default()
             },
-            depth_stencil: Some(wgpu::DepthStencilState {
-                format: DEPTH_FORMAT,
-                depth_write_enabled: Some(true),
-                depth_compare: Some(wgpu::CompareFunction::Greater),
-                stencil: Default::default(),
-                bias: Default::default(),
-            }),
+            depth_stencil: Some(depth_test(true)),
             multisample: Default::default(),
             fragment: Some(wgpu::FragmentState {
                 module: &shader,
                 entry_point: Some("fs_main"),
                 compilation_options: Default::default(),
-                targets: &[Some(wgpu::ColorTargetState {
-                    format: COLOR_FORMAT,
-                    blend: None,
-                    write_mask: wgpu::ColorWrites::ALL,
-                })],
+                targets: &[color_target(None)],
             }),
             multiview_mask: None,
             cache: None,

@@ -7,7 +7,7 @@
 //! into pages in breadth-first order; a page holds whole sibling groups and
 //! page 0 ends on a level boundary, so it is a complete coarse model.
 
-use farfield_protocol::file::{AttributeFlags, FileHeader, HierarchyKind, PageEntry};
+use farfield_protocol::file::{AttributeFlags, FileHeader, HierarchyKind, PageEntry, place_pages};
 use farfield_protocol::page::{PAGE_CHECKSUM_BYTES, PAGE_HEADER_BYTES, PageHeader, encode_page};
 use farfield_protocol::sphere_codec::{self, ChildCount, NodeLayout, NodeRecord};
 use glam::{DVec3, Vec3};
@@ -126,17 +126,9 @@ pub fn lay_out(mut tree: Tree, input: LayoutInput) -> PagedFile {
         }
         std::mem::swap(&mut level, &mut next);
     }
-    let (entries, page_bytes) = pages.finish();
+    let (mut pages_dir, page_bytes) = pages.finish();
     // Pages follow the header; offsets are known once the page count is.
-    let mut offset = FileHeader::encoded_len(entries.len()) as u64;
-    let pages_dir: Vec<PageEntry> = entries
-        .into_iter()
-        .map(|mut e| {
-            e.offset = offset;
-            offset += u64::from(e.length);
-            e
-        })
-        .collect();
+    place_pages(&mut pages_dir);
     let header = FileHeader {
         cluster: 0,
         kind: HierarchyKind::Spheres,
@@ -400,16 +392,8 @@ impl PageCutter {
             return;
         };
         let (bytes, checksum) = encode_page(&header, &self.records);
-        self.entries.push(PageEntry {
-            offset: 0,
-            length: bytes.len() as u32,
-            node_count: header.node_count,
-            first_node: header.first_node,
-            first_child: header.first_child,
-            level_min: header.level_min,
-            level_max: header.level_max,
-            checksum,
-        });
+        self.entries
+            .push(PageEntry::of(&header, bytes.len(), checksum));
         self.pages.push(bytes);
         self.records.clear();
     }

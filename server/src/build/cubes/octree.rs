@@ -215,13 +215,7 @@ fn quantize(tris: &[Triangle], min: DVec3, edge: f64, channels: Channels) -> Lea
             } else {
                 0
             };
-            let rgb = if channels.color {
-                c.color
-                    .to_array()
-                    .map(|v| (v.clamp(0.0, 1.0) * 255.0).round() as u8)
-            } else {
-                [0; 3]
-            };
+            let rgb = if channels.color { c.rgb8() } else { [0; 3] };
             *seen.entry((q, n, rgb)).or_insert_with(|| {
                 g.positions.push(q);
                 if let Some(ns) = g.normals.as_mut() {

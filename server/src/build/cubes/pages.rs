@@ -5,7 +5,7 @@
 //! payload section holds its cells' sub-cubes and leaf geometry, in order.
 
 use farfield_protocol::cube_codec::{self, CubeRecord, Rgba8, SubCube};
-use farfield_protocol::file::{AttributeFlags, FileHeader, HierarchyKind, PageEntry};
+use farfield_protocol::file::{AttributeFlags, FileHeader, HierarchyKind, PageEntry, place_pages};
 use farfield_protocol::page::{
     PAGE_CHECKSUM_BYTES, PAGE_HEADER_BYTES, PageHeader, encode_page_with_payload,
 };
@@ -163,23 +163,10 @@ pub fn lay_out(root: &Cell, info: LayoutInfo) -> PagedFile {
             payload.extend_from_slice(&c.payload);
         }
         let (bytes, checksum) = encode_page_with_payload(&header, &records, &payload);
-        entries.push(PageEntry {
-            offset: 0,
-            length: bytes.len() as u32,
-            node_count: header.node_count,
-            first_node: header.first_node,
-            first_child: header.first_child,
-            level_min: header.level_min,
-            level_max: header.level_max,
-            checksum,
-        });
+        entries.push(PageEntry::of(&header, bytes.len(), checksum));
         pages.push(bytes);
     }
-    let mut offset = FileHeader::encoded_len(entries.len()) as u64;
-    for e in &mut entries {
-        e.offset = offset;
-        offset += u64::from(e.length);
-    }
+    place_pages(&mut entries);
     PagedFile {
         header: FileHeader {
             kind: HierarchyKind::Cubes,

@@ -38,6 +38,15 @@ pub struct Corner {
     pub color: Vec3,
 }
 
+impl Corner {
+    /// The base color as sRGB bytes.
+    pub fn rgb8(&self) -> Rgb8 {
+        self.color
+            .to_array()
+            .map(|v| (v.clamp(0.0, 1.0) * 255.0).round() as u8)
+    }
+}
+
 /// A world-space triangle.
 pub type Triangle = [Corner; 3];
 

@@ -48,7 +48,7 @@ impl FixedLayout {
     /// A reader of property `i` from records of [`FixedLayout::records`].
     pub fn reader(&self, i: usize, big: bool) -> impl Fn(&[u8]) -> f64 + use<> {
         let (offset, ty) = self.fields[i];
-        let decode = decoder(ty, big);
+        let decode = ty.decoder(big);
         move |record: &[u8]| decode(&record[offset..])
     }
 }
@@ -74,7 +74,7 @@ impl List {
         let mut items = Vec::new();
         let mut pos = 0;
         let (count_size, item_size) = (self.count.size(), self.item.size());
-        let (count_of, item_of) = (decoder(self.count, self.big), decoder(self.item, self.big));
+        let (count_of, item_of) = (self.count.decoder(self.big), self.item.decoder(self.big));
         for _ in 0..instances {
             let ok = (|| {
                 let n = count_of(bytes.get(pos..pos + count_size)?);
@@ -96,26 +96,4 @@ impl List {
         }
         Some(pos)
     }
-}
-
-/// A decoder of one value of type `ty` from the front of a slice at least
-/// `ty.size()` long. One function per type and byte order, chosen once per
-/// property: decoding through a `match` per value made the branch on the
-/// type the import's hottest instruction.
-fn decoder(ty: Scalar, big: bool) -> fn(&[u8]) -> f64 {
-    macro_rules! decoders {
-        ($($variant:ident => $t:ty),*) => {
-            match (ty, big) {
-                $(
-                    (Scalar::$variant, false) => |b: &[u8]| {
-                        f64::from(<$t>::from_le_bytes(b[..size_of::<$t>()].try_into().unwrap_or_default()))
-                    },
-                    (Scalar::$variant, true) => |b: &[u8]| {
-                        f64::from(<$t>::from_be_bytes(b[..size_of::<$t>()].try_into().unwrap_or_default()))
-                    },
-                )*
-            }
-        };
-    }
-    decoders!(I8 => i8, U8 => u8, I16 => i16, U16 => u16, I32 => i32, U32 => u32, F32 => f32, F64 => f64)
 }
