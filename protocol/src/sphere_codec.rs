@@ -250,16 +250,21 @@ pub fn encode_sphere(
     let (ni, nj, nk) = (nearest(rel.x), nearest(rel.y), nearest(rel.z));
     // The nearest grid point needs the smallest radius of all points, so if
     // its sphere is valid and encloses the child, it is the answer.
+    // Decoded here with the table's own arithmetic (same operations, same
+    // bits as `decode_sphere`), so the common case reads no table but the
+    // code's.
     let offset = DVec3::new(f64::from(ni), f64::from(nj), f64::from(nk)) * (2.0 / steps);
     let l0 = ceil_steps((rel - offset).length() + rel_radius);
+    let spread = 4 * (ni * ni + nj * nj + nk * nk);
     for l in l0..=(l0 + 1).min(STEPS) {
-        let code = tables.code_of[grid_slot(ni, nj, nk, l)];
-        if code == u16::MAX {
+        // Valid (inside the parent) exactly when the table has a code.
+        if spread > (STEPS - l) * (STEPS - l) {
             break;
         }
-        let (c, r) = decode_sphere(parent_center, parent_radius, code);
+        let c = parent_center + offset * parent_radius;
+        let r = f64::from(l) / steps * parent_radius;
         if c.distance(child_center) + child_radius <= r {
-            return code;
+            return tables.code_of[grid_slot(ni, nj, nk, l)];
         }
     }
     for reach in [0, 2, STEPS] {
@@ -384,6 +389,27 @@ fn normal_cell_edges() -> &'static [f64; NORMAL_GRID as usize + 1] {
     })
 }
 
+/// Bins of [`normal_cell_lookup`] across a face coordinate's [-1, 1].
+const CELL_BINS: usize = 256;
+
+/// For each of [`CELL_BINS`] equal bins of a face coordinate, the number of
+/// interior cell edges safely below the bin's start: a lower bound on the
+/// cell of any coordinate in the bin, so finding the cell takes a lookup
+/// and a step or two instead of a binary search. Bins (width 1/128) are
+/// narrower than the narrowest cell (about 0.03), so a step or two suffices.
+fn normal_cell_lookup() -> &'static [u8; CELL_BINS] {
+    static LOOKUP: OnceLock<[u8; CELL_BINS]> = OnceLock::new();
+    LOOKUP.get_or_init(|| {
+        let edges = normal_cell_edges();
+        std::array::from_fn(|bin| {
+            // Margin: rounding in the caller's bin computation can put a
+            // coordinate a hair below its bin's start.
+            let start = bin as f64 * 2.0 / CELL_BINS as f64 - 1.0 - 1e-9;
+            edges[1..NORMAL_GRID as usize].partition_point(|&e| e < start) as u8
+        })
+    })
+}
+
 /// The largest angle (radians) between a unit normal and its decoded code,
 /// measured over the grid's cell corners; `tests` check it against samples.
 pub const MAX_NORMAL_ERROR: f64 = 0.024;
@@ -405,11 +431,17 @@ pub fn encode_normal(normal: Vec3) -> u16 {
     };
     let major = n[axis];
     let face = axis as u32 * 2 + u32::from(major < 0.0);
-    let edges = normal_cell_edges();
+    let (edges, first_cell) = (normal_cell_edges(), normal_cell_lookup());
     let cell = |v: f64| {
         let u = v / major.abs();
-        // Interior edges at or below u: the cell index, 0..=51.
-        (edges[1..NORMAL_GRID as usize].partition_point(|&e| e <= u)) as u32
+        // Interior edges at or below u: the cell index, 0..=51. The lookup
+        // gives a lower bound from u's bin; at most two edges follow.
+        let bin = ((u + 1.0) * CELL_BINS as f64 * 0.5).clamp(0.0, CELL_BINS as f64 - 1.0) as usize;
+        let mut cell = first_cell[bin] as usize;
+        while cell < NORMAL_GRID as usize - 1 && edges[cell + 1] <= u {
+            cell += 1;
+        }
+        cell as u32
     };
     let iu = cell(n[(axis + 1) % 3]);
     let iv = cell(n[(axis + 2) % 3]);
@@ -427,6 +459,7 @@ pub fn decode_normal(code: u16) -> Vec3 {
 }
 
 /// Half-angles (radians) of the four cone codes.
+#[inline]
 pub fn cone_half_angle(code: u8) -> f64 {
     // asin of CONE_SINES, spelled out so hot loops need no libm call.
     const HALF_ANGLES: [f64; 4] = [
@@ -440,6 +473,7 @@ pub fn cone_half_angle(code: u8) -> f64 {
 
 /// The smallest cone code whose half-angle covers `half_angle` radians;
 /// anything at or beyond 90 degrees (or NaN) is code 3, which never culls.
+#[inline]
 pub fn encode_cone(half_angle: f64) -> u8 {
     (0..3u8)
         .find(|&c| half_angle <= cone_half_angle(c))
@@ -447,6 +481,7 @@ pub fn encode_cone(half_angle: f64) -> u8 {
 }
 
 /// Quantizes an sRGB color to 5-6-5 with rounding.
+#[inline]
 pub fn encode_color(rgb: [u8; 3]) -> u16 {
     let q = |v: u8, bits: u32| ((u32::from(v) * ((1 << bits) - 1) + 127) / 255) as u16;
     q(rgb[0], 5) << 11 | q(rgb[1], 6) << 5 | q(rgb[2], 5)
@@ -522,6 +557,28 @@ mod tests {
             worst > MAX_NORMAL_ERROR * 0.8,
             "bound {MAX_NORMAL_ERROR} is loose: worst {worst}"
         );
+    }
+
+    #[test]
+    fn cell_lookup_agrees_with_a_search_of_the_edges() {
+        // Every edge, a hair either side of it, and a fine sweep: the
+        // lookup's cell must be the binary search's.
+        let edges = normal_cell_edges();
+        let interior = &edges[1..NORMAL_GRID as usize];
+        let mut coordinates: Vec<f64> = (0..=100_000)
+            .map(|i| f64::from(i) / 50_000.0 - 1.0)
+            .collect();
+        for &e in edges.iter() {
+            coordinates.extend([e, e.next_down(), e.next_up(), e - 1e-12, e + 1e-12]);
+        }
+        for u in coordinates.into_iter().filter(|u| (-1.0..=1.0).contains(u)) {
+            // A normal whose major axis is +X: its cell along Y is found
+            // from the coordinate as the encoder sees it, in f32.
+            let n = Vec3::new(1.0, u as f32, 0.0);
+            let expected = interior.partition_point(|&e| e <= f64::from(n.y)) as u16;
+            let iu = encode_normal(n) / NORMAL_GRID as u16 % NORMAL_GRID as u16;
+            assert_eq!(iu, expected, "u = {u}");
+        }
     }
 
     #[test]

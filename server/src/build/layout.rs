@@ -2,8 +2,8 @@
 //!
 //! Nodes are visited level by level. Each sibling group is quantized
 //! against its parent's *quantized* sphere, top-down, so quantization error
-//! never accumulates with depth; an interior node's quantized sphere then
-//! replaces its true one, since only its children still need it. Records go
+//! never accumulates with depth; an interior node's quantized sphere travels
+//! with it to the next level, where its children need it. Records go
 //! into pages in breadth-first order; a page holds whole sibling groups and
 //! page 0 ends on a level boundary, so it is a complete coarse model.
 
@@ -38,7 +38,7 @@ pub struct LayoutInput {
 }
 
 /// Quantizes the tree and cuts it into pages.
-pub fn lay_out(mut tree: Tree, input: LayoutInput) -> PagedFile {
+pub fn lay_out(tree: Tree, input: LayoutInput) -> PagedFile {
     let node_bytes = input.layout.bytes() as usize;
     let mut pages = PageCutter::new(input.page_bytes, node_bytes);
     let (root_center, root_radius) = match tree.root.get() {
@@ -55,8 +55,6 @@ pub fn lay_out(mut tree: Tree, input: LayoutInput) -> PagedFile {
         root_radius
     };
 
-    let mut level: Vec<NodeRef> = vec![tree.root];
-    let mut next: Vec<NodeRef> = Vec::new();
     let mut depth = 0u32;
     let mut nodes = 0u64;
     let mut leaves = 0u64;
@@ -65,67 +63,63 @@ pub fn lay_out(mut tree: Tree, input: LayoutInput) -> PagedFile {
     let mut leaf_sources = Vec::new();
     // The root forms its own group, quantized against the header sphere.
     let root = tree.root;
-    let (root_record, root_update) = quantize(&tree, root, root_center, root_radius, input.layout);
-    apply(&mut tree, root_update);
-    pages.start_group(depth);
-    pages.push(root_record.pack(input.layout), next_child);
+    let (root_record, root_sphere) = quantize(&tree, root, root_center, root_radius, input.layout);
+    let root_bytes = root_record.pack(input.layout).to_le_bytes();
+    pages.add_group(depth, &root_bytes[..node_bytes], next_child);
     next_child += root_record.children.get() as u64;
     nodes += 1;
-    if let Ok(l) = root.get() {
-        leaves += 1;
-        if input.record_leaf_sources {
-            leaf_sources.push((tree.leaves[l].source, 0));
+    let mut level: Vec<Parent> = Vec::new();
+    match (root.get(), root_sphere) {
+        (Ok(l), _) => {
+            leaves += 1;
+            if input.record_leaf_sources {
+                leaf_sources.push((tree.leaves[l].source, 0));
+            }
         }
+        (Err(node), Some((center, radius))) => level.push(Parent {
+            node: node as u32,
+            center,
+            radius,
+        }),
+        (Err(_), None) => unreachable!("an interior node always has a quantized sphere"),
     }
-    pages.end_group();
     while !level.is_empty() {
         pages.end_level();
         depth += 1;
-        next.clear();
-        let parents: Vec<usize> = level.iter().filter_map(|r| r.get().err()).collect();
-        for chunk in parents.chunks(LAYOUT_CHUNK) {
-            // Quantize this chunk's sibling groups on all threads (each reads
-            // only its parent's already-quantized sphere), then place them in
-            // order and record the children's quantized spheres.
-            let groups: Vec<[(NodeRecord, NodeRef, Update); 4]> = chunk
-                .par_iter()
-                .map(|&p| {
-                    let node = &tree.interior[p];
-                    let mut group = [(NodeRecord::EMPTY, NodeRef::leaf(0), None); 4];
-                    for (slot, &child) in group
-                        .iter_mut()
-                        .zip(&node.children[..usize::from(node.child_count)])
-                    {
-                        let (record, update) =
-                            quantize(&tree, child, node.center, node.radius, input.layout);
-                        *slot = (record, child, update);
-                    }
-                    group
-                })
+        let mut next = Vec::new();
+        for window in level.chunks(LAYOUT_CHUNK) {
+            // Quantize this window's sibling groups on all threads (each
+            // reads only its parent's quantized sphere, carried in `Parent`),
+            // then place the records in order: the only serial work is
+            // copying record bytes into pages.
+            let placed: Vec<PlacedGroups> = window
+                .par_chunks(LAYOUT_GRAIN)
+                .map(|parents| quantize_groups(&tree, parents, input.layout))
                 .collect();
-            for (&p, group) in chunk.iter().zip(&groups) {
-                pages.start_group(depth);
-                for &(record, child, update) in &group[..usize::from(tree.interior[p].child_count)]
-                {
-                    pages.push(record.pack(input.layout), next_child);
-                    next_child += record.children.get() as u64;
-                    apply(&mut tree, update);
-                    match child.get() {
-                        Err(_) => next.push(child),
-                        Ok(l) => {
-                            leaves += 1;
-                            if input.record_leaf_sources {
-                                leaf_sources.push((tree.leaves[l].source, nodes));
+            for (parents, placed) in window.chunks(LAYOUT_GRAIN).zip(placed) {
+                let mut offset = 0;
+                for (parent, &(count, grandchildren)) in parents.iter().zip(&placed.groups) {
+                    let end = offset + usize::from(count) * node_bytes;
+                    pages.add_group(depth, &placed.bytes[offset..end], next_child);
+                    offset = end;
+                    if input.record_leaf_sources {
+                        let node = &tree.interior[parent.node as usize];
+                        for (i, child) in node.children[..usize::from(count)].iter().enumerate() {
+                            if let Ok(l) = child.get() {
+                                leaf_sources.push((tree.leaves[l].source, nodes + i as u64));
                             }
                         }
                     }
-                    nodes += 1;
+                    next_child += u64::from(grandchildren);
+                    nodes += u64::from(count);
                 }
-                pages.end_group();
+                leaves += placed.leaves;
+                next.extend_from_slice(&placed.next);
             }
         }
-        std::mem::swap(&mut level, &mut next);
+        level = next;
     }
+    drop(tree);
     let (mut pages_dir, page_bytes) = pages.finish();
     // Pages follow the header; offsets are known once the page count is.
     place_pages(&mut pages_dir);
@@ -155,30 +149,75 @@ pub fn lay_out(mut tree: Tree, input: LayoutInput) -> PagedFile {
     }
 }
 
-/// Parents quantized per parallel batch: enough work to share between
-/// threads, little enough memory to hold the batch's records.
-const LAYOUT_CHUNK: usize = 1 << 14;
+/// Parents whose sibling groups are quantized per window: enough work to
+/// share between threads, little enough memory to hold their records.
+const LAYOUT_CHUNK: usize = 1 << 15;
+/// Parents per parallel task within a window.
+const LAYOUT_GRAIN: usize = 1 << 10;
 
-/// An interior node's quantized sphere, to replace its true one.
-type Update = Option<(usize, DVec3, f64)>;
+/// An interior node of the level being placed, with its quantized sphere:
+/// the frame its children are quantized in. Carrying it here, rather than
+/// writing it back into the tree, leaves the tree read-only.
+#[derive(Debug, Clone, Copy)]
+struct Parent {
+    node: u32,
+    center: DVec3,
+    radius: f64,
+}
 
-fn apply(tree: &mut Tree, update: Update) {
-    if let Some((i, center, radius)) = update {
-        tree.interior[i].center = center;
-        tree.interior[i].radius = radius;
+/// One task's output: the packed records of its parents' children, in
+/// order; per parent, the number of children and of grandchildren (the
+/// group's size and how far it moves the next child index); how many of
+/// the children are leaves; and those that are interior nodes, for the
+/// next level.
+struct PlacedGroups {
+    bytes: Vec<u8>,
+    groups: Vec<(u8, u8)>,
+    leaves: u64,
+    next: Vec<Parent>,
+}
+
+fn quantize_groups(tree: &Tree, parents: &[Parent], layout: NodeLayout) -> PlacedGroups {
+    let node_bytes = layout.bytes() as usize;
+    let mut placed = PlacedGroups {
+        bytes: Vec::with_capacity(parents.len() * 4 * node_bytes),
+        groups: Vec::with_capacity(parents.len()),
+        leaves: 0,
+        next: Vec::with_capacity(parents.len() * 2),
+    };
+    for parent in parents {
+        let node = &tree.interior[parent.node as usize];
+        let mut grandchildren = 0;
+        for &child in &node.children[..usize::from(node.child_count)] {
+            let (record, sphere) = quantize(tree, child, parent.center, parent.radius, layout);
+            placed
+                .bytes
+                .extend_from_slice(&record.pack(layout).to_le_bytes()[..node_bytes]);
+            grandchildren += record.children.get() as u8;
+            match (child.get(), sphere) {
+                (Err(i), Some((center, radius))) => placed.next.push(Parent {
+                    node: i as u32,
+                    center,
+                    radius,
+                }),
+                _ => placed.leaves += 1,
+            }
+        }
+        placed.groups.push((node.child_count, grandchildren));
     }
+    placed
 }
 
 /// Quantizes one node against its parent's quantized sphere. For an
-/// interior node also returns its quantized sphere, which replaces the true
-/// one once the level is placed: only its children still need it.
+/// interior node also returns its quantized sphere, the frame its own
+/// children are quantized in.
 fn quantize(
     tree: &Tree,
     node: NodeRef,
     parent_center: DVec3,
     parent_radius: f64,
     layout: NodeLayout,
-) -> (NodeRecord, Update) {
+) -> (NodeRecord, Option<(DVec3, f64)>) {
     let (center, radius, normal, cone, color, children) = match node.get() {
         Ok(l) => {
             let leaf = tree.leaves[l];
@@ -212,10 +251,8 @@ fn quantize(
         radius
     };
     let sphere = sphere_codec::encode_sphere(parent_center, parent_radius, center, stored_radius);
-    let update = node.get().err().map(|i| {
-        let (qc, qr) = sphere_codec::decode_sphere(parent_center, parent_radius, sphere);
-        (i, qc, qr)
-    });
+    let quantized =
+        (children > 0).then(|| sphere_codec::decode_sphere(parent_center, parent_radius, sphere));
     let (normal_code, cone_code) = if layout.normals {
         encode_orientation(normal, cone)
     } else {
@@ -232,7 +269,7 @@ fn quantize(
             0
         },
     };
-    (record, update)
+    (record, quantized)
 }
 
 /// How much larger than its true sphere an interior node is stored.
@@ -266,10 +303,6 @@ struct PageCutter {
     page_bytes: usize,
     node_bytes: usize,
     records: Vec<u8>,
-    group: Vec<u8>,
-    group_level: u32,
-    /// first_child of the first node in the current group / page.
-    group_first_child: Option<u64>,
     page: Option<PageHeader>,
     /// Page 0's records up to the last complete level.
     page0_done: bool,
@@ -287,9 +320,6 @@ impl PageCutter {
             page_bytes,
             node_bytes,
             records: Vec::new(),
-            group: Vec::new(),
-            group_level: 0,
-            group_first_child: None,
             page: None,
             page0_done: false,
             page0_level_end: 0,
@@ -304,29 +334,18 @@ impl PageCutter {
         self.page_bytes - PAGE_HEADER_BYTES - PAGE_CHECKSUM_BYTES
     }
 
-    fn start_group(&mut self, level: u32) {
-        self.group.clear();
-        self.group_level = level;
-        self.group_first_child = None;
-    }
-
-    fn push(&mut self, record: u64, first_child: u64) {
-        self.group_first_child.get_or_insert(first_child);
-        self.group
-            .extend_from_slice(&record.to_le_bytes()[..self.node_bytes]);
-    }
-
-    fn end_group(&mut self) {
-        let group_nodes = (self.group.len() / self.node_bytes) as u64;
-        if self.page.is_some() && self.records.len() + self.group.len() > self.capacity() {
+    /// Adds one sibling group of packed records at `level`; `first_child`
+    /// is the breadth-first index of its first node's first child.
+    fn add_group(&mut self, level: u32, group: &[u8], first_child: u64) {
+        let group_nodes = (group.len() / self.node_bytes) as u64;
+        if self.page.is_some() && self.records.len() + group.len() > self.capacity() {
             if self.entries.is_empty() {
                 self.flush_page0();
             } else {
                 self.flush();
             }
         }
-        let first_child = self.group_first_child.unwrap_or(0);
-        let level = self.group_level as u16;
+        let level = level as u16;
         let page = self.page.get_or_insert(PageHeader {
             index: self.entries.len() as u32,
             first_node: self.next_node,
@@ -338,7 +357,7 @@ impl PageCutter {
         page.node_count += group_nodes as u32;
         page.level_max = level;
         self.next_node += group_nodes;
-        self.records.extend_from_slice(&self.group);
+        self.records.extend_from_slice(group);
     }
 
     /// Called after each complete level: remembers where page 0 could end.

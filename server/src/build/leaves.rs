@@ -59,11 +59,22 @@ pub fn make_leaves(scene: Scene, has_color: bool) -> (Vec<Leaf>, LeafStats) {
         .iter()
         .map(|i| geometries[i.geometry].positions.len() as u64)
         .sum();
-    let mut leaves = Vec::with_capacity(total as usize);
     let mut stats = LeafStats {
         input_vertices: total,
         unreferenced_vertices: 0,
     };
+    // One geometry placed as it is (any scanned mesh): its leaves are the
+    // result, with no copy into a second array of the same size.
+    if let [only] = &instances[..]
+        && only.world_from_local == DAffine3::IDENTITY
+        && geometries.len() == 1
+    {
+        let geometry = geometries.into_iter().next().expect("one geometry");
+        let (local, unreferenced) = local_leaves(geometry, has_color);
+        stats.unreferenced_vertices = unreferenced;
+        return (local, stats);
+    }
+    let mut leaves = Vec::with_capacity(total as usize);
     let mut by_geometry: Vec<Vec<DAffine3>> = vec![Vec::new(); geometries.len()];
     for instance in &instances {
         by_geometry[instance.geometry].push(instance.world_from_local);
@@ -143,13 +154,14 @@ fn local_leaves(geometry: Geometry, has_color: bool) -> (Vec<Leaf>, u64) {
             None => [0; 3],
         }
     };
+    let up = pack_normal(Vec3::Z);
     let mut leaves: Vec<Leaf> = positions
         .iter()
         .enumerate()
         .map(|(i, &position)| Leaf {
             position,
             radius: 0.0,
-            normal: pack_normal(Vec3::Z),
+            normal: up,
             color: color_of(i),
             cone: 255,
             source: i as u32,
@@ -186,96 +198,171 @@ fn is_unreferenced(leaf: &Leaf) -> bool {
 
 /// Sizes mesh vertices from their triangles; returns the number of vertices
 /// no triangle uses, which are marked with a negative radius and dropped.
+///
+/// The vertices are cut into one contiguous range per thread, and each
+/// thread walks all the triangles, doing the work of those corners that
+/// fall in its range: every vertex is written by one thread only, in
+/// triangle order (so the result does not depend on the thread count), and
+/// no per-triangle buffer is needed. A triangle with corners in two ranges
+/// is measured twice; meshes keep neighbours close in the vertex order, so
+/// that is rare.
 fn size_from_triangles(
     leaves: &mut [Leaf],
     triangles: &[[u32; 3]],
     normals: Option<Vec<Vec3>>,
 ) -> u64 {
-    // Working memory is one f32 normal and one f32 cosine per vertex: the
-    // radius accumulates in the leaf itself, -1 meaning "no triangle yet".
+    // Working memory is a radius, a normal and a cosine per vertex.
     let n = leaves.len();
-    for leaf in leaves.iter_mut() {
-        leaf.radius = -1.0;
-    }
     let have_normals = normals.is_some();
     let mut normal = normals.unwrap_or_else(|| vec![Vec3::ZERO; n]);
-    // Per-triangle geometry is computed on all threads a chunk at a time
-    // (bounded memory), then scattered to the vertices in order.
-    let mut faces: Vec<(f32, Vec3)> = Vec::with_capacity(TRIANGLE_CHUNK.min(triangles.len()));
-    for chunk in triangles.chunks(TRIANGLE_CHUNK) {
-        let positions = &*leaves;
-        faces.clear();
-        faces.par_extend(chunk.par_iter().map(|tri| {
-            let [a, b, c] = tri.map(|i| positions[i as usize].position);
-            // Rounded up to f32 per triangle: the max of round-ups never shrinks.
-            let r = round_up_f32(triangle_bounding_radius(a, b, c));
-            (r, (b - a).cross(c - a).as_vec3()) // length = 2 * area
-        }));
-        for (tri, &(r, face)) in chunk.iter().zip(&faces) {
-            for v in tri.map(|i| i as usize) {
-                leaves[v].radius = leaves[v].radius.max(r);
-                if !have_normals {
-                    normal[v] += face;
-                }
-            }
-        }
-    }
-    normal
-        .par_iter_mut()
-        .for_each(|nv| *nv = nv.try_normalize().unwrap_or(Vec3::ZERO));
-    // Cone: the widest angle between a vertex normal and its faces' normals,
-    // tracked as the smallest cosine (one acos per vertex, not per corner).
+    let mut radius = vec![-1.0f32; n];
     let mut min_cos = vec![1.0f32; n];
-    for tri in triangles {
-        let [a, b, c] = tri.map(|i| i as usize);
-        let face = (leaves[b].position - leaves[a].position)
-            .cross(leaves[c].position - leaves[a].position);
-        let Some(face) = face.try_normalize() else {
-            continue;
-        };
-        let face = face.as_vec3();
-        for v in [a, b, c] {
-            min_cos[v] = min_cos[v].min(normal[v].dot(face));
-        }
-    }
+    let range_len = n.div_ceil(rayon::current_num_threads().max(1)).max(1 << 14);
+    let positions = &*leaves;
+    radius
+        .par_chunks_mut(range_len)
+        .zip(normal.par_chunks_mut(range_len))
+        .zip(min_cos.par_chunks_mut(range_len))
+        .enumerate()
+        .for_each(|(part, ((radius, normal), min_cos))| {
+            let first = part * range_len;
+            let mut range = VertexRange {
+                first,
+                radius,
+                normal,
+                min_cos,
+            };
+            range.size(positions, triangles, have_normals);
+        });
     let mut unreferenced = 0;
-    for (v, leaf) in leaves.iter_mut().enumerate() {
-        if leaf.radius < 0.0 {
-            unreferenced += 1;
-        } else if normal[v] != Vec3::ZERO {
-            leaf.normal = pack_normal(normal[v]);
-            // A little margin for the f32 arithmetic of the cosines.
-            leaf.cone = cone_to_u8(f64::from(min_cos[v]).clamp(-1.0, 1.0).acos() + 1e-4);
-        } else {
-            leaf.cone = 255;
-        }
+    for r in &radius {
+        unreferenced += u64::from(*r < 0.0);
     }
+    leaves
+        .par_iter_mut()
+        .zip(radius.par_iter())
+        .zip(normal.par_iter())
+        .zip(min_cos.par_iter())
+        .for_each(|(((leaf, &r), &nv), &c)| {
+            leaf.radius = r;
+            if r >= 0.0 && nv != Vec3::ZERO {
+                leaf.normal = pack_normal(nv);
+                // A little margin for the f32 arithmetic of the cosines.
+                leaf.cone = cone_to_u8(acos_upper(f64::from(c)) + 1e-4);
+            } else {
+                leaf.cone = 255;
+            }
+        });
     unreferenced
 }
 
-/// Triangles whose geometry is computed per parallel batch.
-const TRIANGLE_CHUNK: usize = 1 << 18;
+/// One thread's share of [`size_from_triangles`]: the working values of the
+/// vertices `first..first + radius.len()`.
+struct VertexRange<'a> {
+    first: usize,
+    /// Largest bounding radius of the incident triangles; -1 for none yet.
+    radius: &'a mut [f32],
+    /// Area-weighted sum of the face normals, then its direction.
+    normal: &'a mut [Vec3],
+    /// Smallest cosine between the vertex normal and an incident face's.
+    min_cos: &'a mut [f32],
+}
+
+impl VertexRange<'_> {
+    /// The index in this range of each corner of `tri`, if it has one.
+    fn owned(&self, tri: &[u32; 3]) -> [Option<usize>; 3] {
+        tri.map(|i| {
+            let local = (i as usize).wrapping_sub(self.first);
+            (local < self.radius.len()).then_some(local)
+        })
+    }
+
+    fn size(&mut self, leaves: &[Leaf], triangles: &[[u32; 3]], have_normals: bool) {
+        for tri in triangles {
+            let owned = self.owned(tri);
+            if owned == [None; 3] {
+                continue;
+            }
+            let [a, b, c] = tri.map(|i| leaves[i as usize].position);
+            let (r, face) = bounding_radius_and_face(a, b, c);
+            // Rounded up to f32 per triangle: the max of round-ups never shrinks.
+            let r = round_up_f32(r);
+            let face = face.as_vec3(); // length = 2 * area
+            for v in owned.into_iter().flatten() {
+                self.radius[v] = self.radius[v].max(r);
+                if !have_normals {
+                    self.normal[v] += face;
+                }
+            }
+        }
+        for nv in self.normal.iter_mut() {
+            *nv = nv.try_normalize().unwrap_or(Vec3::ZERO);
+        }
+        // Cone: the widest angle between a vertex normal and its faces'
+        // normals, tracked as the smallest cosine (one acos per vertex, not
+        // per corner).
+        for tri in triangles {
+            let owned = self.owned(tri);
+            if owned == [None; 3] {
+                continue;
+            }
+            let [a, b, c] = tri.map(|i| leaves[i as usize].position);
+            let Some(face) = (b - a).cross(c - a).try_normalize() else {
+                continue;
+            };
+            let face = face.as_vec3();
+            for v in owned.into_iter().flatten() {
+                self.min_cos[v] = self.min_cos[v].min(self.normal[v].dot(face));
+            }
+        }
+    }
+}
 
 /// Radius of the smallest sphere holding a triangle: half the longest edge
 /// for a right or obtuse triangle, else the circumradius.
 pub fn triangle_bounding_radius(a: DVec3, b: DVec3, c: DVec3) -> f64 {
+    bounding_radius_and_face(a, b, c).0
+}
+
+/// [`triangle_bounding_radius`] and the face vector `(b - a) x (c - a)`
+/// (its length is twice the area), sharing the cross product. One square
+/// root: the circumradius R = |ab| |bc| |ca| / (4 area) is taken as
+/// sqrt(|ab|² |bc|² |ca|² / (4 |face|²)).
+fn bounding_radius_and_face(a: DVec3, b: DVec3, c: DVec3) -> (f64, DVec3) {
+    let face = (b - a).cross(c - a);
     let (ab, bc, ca) = (
         a.distance_squared(b),
         b.distance_squared(c),
         c.distance_squared(a),
     );
     let longest = ab.max(bc).max(ca);
-    let half_longest = longest.sqrt() * 0.5;
-    // Obtuse or right at some corner: the longest edge's midpoint sphere holds all.
-    if longest >= ab + bc + ca - longest {
-        return half_longest;
-    }
-    let twice_area = (b - a).cross(c - a).length();
-    if twice_area <= 0.0 {
-        return half_longest;
-    }
-    let circumradius = (ab * bc * ca).sqrt() / (2.0 * twice_area);
-    circumradius.max(half_longest)
+    let half_longest_squared = longest * 0.25;
+    let twice_area_squared = face.length_squared();
+    // Obtuse or right at some corner: the longest edge's midpoint sphere
+    // holds all. A degenerate triangle has no circumcircle either.
+    let squared = if longest >= ab + bc + ca - longest || twice_area_squared <= 0.0 {
+        half_longest_squared
+    } else {
+        (ab * bc * ca / (4.0 * twice_area_squared)).max(half_longest_squared)
+    };
+    (squared.sqrt(), face)
+}
+
+/// An upper bound on `acos(x)` within 2e-4 radians, without a libm call
+/// (Abramowitz and Stegun 4.4.45, |error| about 5e-5, plus twice that): cones
+/// are built per leaf and bottom-up over every node, and only need to be
+/// conservative.
+pub(crate) fn acos_upper(x: f64) -> f64 {
+    let x = x.clamp(-1.0, 1.0);
+    let a = x.abs();
+    let r =
+        (1.0 - a).sqrt() * (1.570_728_8 + a * (-0.212_114_4 + a * (0.074_261_0 - a * 0.018_729_3)));
+    let angle = if x >= 0.0 {
+        r
+    } else {
+        std::f64::consts::PI - r
+    };
+    angle + 1e-4
 }
 
 /// The next f32 at or above `v`, so a stored radius never shrinks.
@@ -334,6 +421,18 @@ mod tests {
             DVec3::new(0.5, 3f64.sqrt() / 2.0, 0.0),
         );
         assert!((r - 1.0 / 3f64.sqrt()).abs() < 1e-12);
+    }
+
+    #[test]
+    fn fast_acos_is_a_tight_upper_bound() {
+        for i in -1000..=1000 {
+            let x = f64::from(i) / 1000.0;
+            let (fast, exact) = (acos_upper(x), x.acos());
+            assert!(
+                fast >= exact && fast - exact < 2e-4,
+                "acos({x}): {fast} vs {exact}"
+            );
+        }
     }
 
     #[test]

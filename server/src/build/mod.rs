@@ -18,6 +18,7 @@ use std::time::Instant;
 use farfield_protocol::sphere_codec::NodeLayout;
 use glam::DVec3;
 pub use layout::PagedFile;
+use rayon::prelude::*;
 
 use crate::scene::Scene;
 
@@ -96,12 +97,13 @@ pub fn build_spheres(
     if leaf_list.is_empty() {
         return Err(BuildError::Empty);
     }
-    let (bounds_min, bounds_max) = bounds(&leaf_list);
-    apply_radius_floor(&mut leaf_list, bounds_max - bounds_min);
+    let measured = measure(&leaf_list);
+    let (bounds_min, bounds_max) = measured.bounds;
+    apply_radius_floor(&mut leaf_list, &measured);
     let seconds_leaves = started.elapsed().as_secs_f64();
 
     let started = Instant::now();
-    let tree = tree::build_tree(leaf_list);
+    let tree = tree::build_tree_within(leaf_list, measured.bounds);
     let collapsed_duplicates = tree.collapsed_duplicates;
     let seconds_tree = started.elapsed().as_secs_f64();
 
@@ -136,11 +138,40 @@ pub fn build_spheres(
     Ok((file, stats))
 }
 
-fn bounds(leaves: &[leaves::Leaf]) -> (DVec3, DVec3) {
+/// What one pass over the leaves learns: their bounds, their smallest
+/// positive radius, and whether any radius needs the floor.
+struct Measured {
+    bounds: tree::Bounds,
+    smallest_radius: f32,
+    needs_floor: bool,
+}
+
+/// Measures the leaves on all threads in one pass.
+fn measure(leaves: &[leaves::Leaf]) -> Measured {
+    let empty = || Measured {
+        bounds: (DVec3::INFINITY, DVec3::NEG_INFINITY),
+        smallest_radius: f32::INFINITY,
+        needs_floor: false,
+    };
     leaves
-        .iter()
-        .fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(lo, hi), l| {
-            (lo.min(l.position), hi.max(l.position))
+        .par_chunks(1 << 16)
+        .map(|chunk| {
+            let mut m = empty();
+            for l in chunk {
+                m.bounds = (m.bounds.0.min(l.position), m.bounds.1.max(l.position));
+                if l.radius > 0.0 {
+                    m.smallest_radius = m.smallest_radius.min(l.radius);
+                } else {
+                    // Zero, negative or NaN.
+                    m.needs_floor = true;
+                }
+            }
+            m
+        })
+        .reduce(empty, |a, b| Measured {
+            bounds: (a.bounds.0.min(b.bounds.0), a.bounds.1.max(b.bounds.1)),
+            smallest_radius: a.smallest_radius.min(b.smallest_radius),
+            needs_floor: a.needs_floor || b.needs_floor,
         })
 }
 
@@ -148,15 +179,13 @@ fn bounds(leaves: &[leaves::Leaf]) -> (DVec3, DVec3) {
 /// the smallest radius another leaf has, else a millionth of the scene's
 /// extent, else 1 when the scene is a single point: a splat needs a size,
 /// and the quantizer a positive scale.
-fn apply_radius_floor(leaves: &mut [leaves::Leaf], extent: DVec3) {
-    let smallest = leaves
-        .iter()
-        .map(|l| l.radius)
-        .filter(|r| *r > 0.0)
-        .fold(f32::INFINITY, f32::min);
-    let diameter = extent.length();
-    let floor = if smallest.is_finite() {
-        smallest
+fn apply_radius_floor(leaves: &mut [leaves::Leaf], measured: &Measured) {
+    if !measured.needs_floor {
+        return;
+    }
+    let diameter = (measured.bounds.1 - measured.bounds.0).length();
+    let floor = if measured.smallest_radius.is_finite() {
+        measured.smallest_radius
     } else if diameter > 0.0 {
         leaves::round_up_f32(diameter * 1e-6)
     } else {

@@ -16,7 +16,7 @@
 use glam::{DVec3, Vec3};
 use rayon::join;
 
-use super::leaves::{Leaf, cone_from_u8, cone_to_u8, pack_normal, unpack_normal};
+use super::leaves::{Leaf, acos_upper, cone_from_u8, cone_to_u8, pack_normal, unpack_normal};
 
 /// Binary splits by bisection before falling back to median splits.
 pub const BISECT_DEPTH: u32 = 96;
@@ -80,8 +80,24 @@ struct Summary {
     leaves: u32,
 }
 
+/// A placeholder for unused slots of fixed arrays of summaries.
+const EMPTY_SUMMARY: Summary = Summary {
+    center: DVec3::ZERO,
+    radius: 0.0,
+    normal: DVec3::ZERO,
+    cone: 0.0,
+    color: DVec3::ZERO,
+    leaves: 0,
+};
+
 /// Builds the tree; `leaves` must not be empty.
-pub fn build_tree(mut leaves: Vec<Leaf>) -> Tree {
+pub fn build_tree(leaves: Vec<Leaf>) -> Tree {
+    let all = bounds(&leaves);
+    build_tree_within(leaves, all)
+}
+
+/// [`build_tree`] when the leaves' bounds are already known.
+pub fn build_tree_within(mut leaves: Vec<Leaf>, all: Bounds) -> Tree {
     assert!(!leaves.is_empty(), "build_tree needs at least one leaf");
     assert!(
         leaves.len() < (1 << 31),
@@ -92,7 +108,6 @@ pub fn build_tree(mut leaves: Vec<Leaf>) -> Tree {
     } else {
         0
     });
-    let all = bounds(&leaves);
     let (root, _, collapsed) = build_range(&mut leaves, all, 0, 0, &mut interior);
     Tree {
         leaves,
@@ -125,19 +140,24 @@ fn build_range(
     // Each split also measures the bounds of its two sides, so no range's
     // bounds are computed twice.
     let (mid, left, right) = split(leaves, lo, hi, depth);
-    let mut ranges: Vec<(usize, usize, Bounds)> = Vec::with_capacity(4);
+    // Fixed arrays, not vectors: this runs once per interior node.
+    let mut ranges = [(0, 0, EMPTY_BOUNDS); 4];
+    let mut count = 0;
     for (start, end, (plo, phi)) in [(0, mid, left), (mid, leaves.len(), right)] {
         let part = &mut leaves[start..end];
         if part.len() > 1 && plo != phi {
             let (m, a, b) = split(part, plo, phi, depth + 1);
-            ranges.push((start, start + m, a));
-            ranges.push((start + m, end, b));
+            ranges[count] = (start, start + m, a);
+            ranges[count + 1] = (start + m, end, b);
+            count += 2;
         } else {
-            ranges.push((start, end, (plo, phi)));
+            ranges[count] = (start, end, (plo, phi));
+            count += 1;
         }
     }
+    let ranges = &ranges[..count];
     let mut children = [NodeRef::leaf(0); 4];
-    let mut summaries = Vec::with_capacity(4);
+    let mut summaries = [EMPTY_SUMMARY; 4];
     let mut collapsed = 0;
     if depth == 0 && leaves.len() >= PARALLEL_MIN {
         // Build the root's 2 to 4 child ranges on two threads, each into its
@@ -145,7 +165,7 @@ fn build_range(
         // it is moved) and shift their interior references. Only at the
         // root: nested, each level's lists would be copied again while their
         // children's still exist, and that copy was the build's memory peak.
-        let results = build_parallel(leaves, base, depth + 2, &ranges);
+        let results = build_parallel(leaves, base, depth + 2, ranges);
         out.reserve_exact(results.iter().map(|r| r.3.len() + 1).sum());
         for (i, (child, summary, dup, mut nodes)) in results.into_iter().enumerate() {
             let offset = out.len();
@@ -161,7 +181,7 @@ fn build_range(
                 Ok(_) => child,
                 Err(j) => NodeRef::interior(j + offset),
             };
-            summaries.push(summary);
+            summaries[i] = summary;
             collapsed += dup;
         }
     } else {
@@ -169,11 +189,11 @@ fn build_range(
             let (child, summary, dup) =
                 build_range(&mut leaves[start..end], b, base + start, depth + 2, out);
             children[i] = child;
-            summaries.push(summary);
+            summaries[i] = summary;
             collapsed += dup;
         }
     }
-    let (node, summary) = parent_of(&summaries, children);
+    let (node, summary) = parent_of(&summaries[..count], children);
     out.push(node);
     (NodeRef::interior(out.len() - 1), summary, collapsed)
 }
@@ -204,7 +224,12 @@ fn build_parallel(
                 vec![(r, summary, d, nodes)]
             }
             _ => {
-                let half = ranges.len() / 2;
+                // Cut where the two sides' leaf counts are closest, not at
+                // the middle range: the root's ranges can differ tenfold.
+                let total = ranges[ranges.len() - 1].1 - ranges[0].0;
+                let half = (1..ranges.len())
+                    .min_by_key(|&i| (2 * (ranges[i].0 - ranges[0].0)).abs_diff(total))
+                    .unwrap_or(1);
                 let cut = ranges[half].0 - offset;
                 let (left, right) = leaves.split_at_mut(cut);
                 let (mut a, b) = join(
@@ -314,15 +339,18 @@ fn leaf_summary(l: &Leaf) -> Summary {
 
 /// Normal, cone and color of a set of children (center/radius not set).
 fn combine(children: &[Summary]) -> Summary {
-    let total: f64 = children.iter().map(|c| f64::from(c.leaves)).sum();
-    let weighted = |f: &dyn Fn(&Summary) -> DVec3| {
-        children
-            .iter()
-            .map(|c| f(c) * f64::from(c.leaves))
-            .sum::<DVec3>()
-            / total
-    };
-    let normal = weighted(&|c| c.normal)
+    let mut total = 0.0;
+    let mut normal_sum = DVec3::ZERO;
+    let mut color_sum = DVec3::ZERO;
+    let mut leaves = 0;
+    for c in children {
+        let weight = f64::from(c.leaves);
+        total += weight;
+        normal_sum += c.normal * weight;
+        color_sum += c.color * weight;
+        leaves += c.leaves;
+    }
+    let normal = (normal_sum / total)
         .try_normalize()
         .unwrap_or(children[0].normal);
     let cone = children
@@ -335,25 +363,9 @@ fn combine(children: &[Summary]) -> Summary {
         radius: 0.0,
         normal,
         cone,
-        color: weighted(&|c| c.color),
-        leaves: children.iter().map(|c| c.leaves).sum(),
+        color: color_sum / total,
+        leaves,
     }
-}
-
-/// An upper bound on `acos(x)` within 2e-4 radians, without a libm call
-/// (Abramowitz and Stegun 4.4.45, |error| about 5e-5, plus twice that): cones
-/// are built bottom-up over every node, and only need to be conservative.
-fn acos_upper(x: f64) -> f64 {
-    let x = x.clamp(-1.0, 1.0);
-    let a = x.abs();
-    let r =
-        (1.0 - a).sqrt() * (1.570_728_8 + a * (-0.212_114_4 + a * (0.074_261_0 - a * 0.018_729_3)));
-    let angle = if x >= 0.0 {
-        r
-    } else {
-        std::f64::consts::PI - r
-    };
-    angle + 1e-4
 }
 
 /// The parent node of 2 to 4 children: the sphere around the box of their
@@ -453,18 +465,6 @@ mod tests {
         let mut depth = 0;
         assert_eq!(check(&tree, tree.root, 0, &mut depth), 120_000);
         assert!(depth < 20, "depth {depth}");
-    }
-
-    #[test]
-    fn fast_acos_is_a_tight_upper_bound() {
-        for i in -1000..=1000 {
-            let x = f64::from(i) / 1000.0;
-            let (fast, exact) = (acos_upper(x), x.acos());
-            assert!(
-                fast >= exact && fast - exact < 2e-4,
-                "acos({x}): {fast} vs {exact}"
-            );
-        }
     }
 
     #[test]
