@@ -69,19 +69,18 @@ pub fn lay_out(tree: Tree, input: LayoutInput) -> PagedFile {
     next_child += root_record.children.get() as u64;
     nodes += 1;
     let mut level: Vec<Parent> = Vec::new();
-    match (root.get(), root_sphere) {
-        (Ok(l), _) => {
-            leaves += 1;
-            if input.record_leaf_sources {
-                leaf_sources.push((tree.leaves[l].source, 0));
-            }
-        }
-        (Err(node), Some((center, radius))) => level.push(Parent {
+    // `quantize` gives every interior node its quantized sphere.
+    if let (Err(node), Some((center, radius))) = (root.get(), root_sphere) {
+        level.push(Parent {
             node: node as u32,
             center,
             radius,
-        }),
-        (Err(_), None) => unreachable!("an interior node always has a quantized sphere"),
+        });
+    } else if let Ok(l) = root.get() {
+        leaves += 1;
+        if input.record_leaf_sources {
+            leaf_sources.push((tree.leaves[l].source, 0));
+        }
     }
     while !level.is_empty() {
         pages.end_level();

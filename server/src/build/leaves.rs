@@ -65,11 +65,12 @@ pub fn make_leaves(scene: Scene, has_color: bool) -> (Vec<Leaf>, LeafStats) {
     };
     // One geometry placed as it is (any scanned mesh): its leaves are the
     // result, with no copy into a second array of the same size.
+    let mut geometries = geometries;
     if let [only] = &instances[..]
         && only.world_from_local == DAffine3::IDENTITY
         && geometries.len() == 1
+        && let Some(geometry) = geometries.pop()
     {
-        let geometry = geometries.into_iter().next().expect("one geometry");
         let (local, unreferenced) = local_leaves(geometry, has_color);
         stats.unreferenced_vertices = unreferenced;
         return (local, stats);
