@@ -569,6 +569,12 @@ fn run(cli: Cli) -> anyhow::Result<()> {
     }
 }
 
+/// The demo builds its scene in-process: large build arrays on huge pages,
+/// as in `farfield-server` (see [`farfield_server::allocator`]).
+#[global_allocator]
+static ALLOCATOR: farfield_server::allocator::HugePageAlloc =
+    farfield_server::allocator::HugePageAlloc;
+
 fn main() -> ExitCode {
     tracing_subscriber::fmt()
         .with_env_filter(tracing_subscriber::EnvFilter::from_default_env())

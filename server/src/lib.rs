@@ -6,11 +6,14 @@
 //! - [`build`]: the QSplat bounding-sphere builder: leaf sizing, tree,
 //!   quantization and the breadth-first page layout.
 //! - [`cli`]: the `farfield-server` subcommands, callable in-process.
+//! - [`allocator`]: the allocator the binaries use (transparent huge pages
+//!   for the builder's large arrays) and the return of freed memory.
 //! - [`store`]: writes the paged file atomically and reads it back through a
 //!   memory map, verifying page checksums.
 //! - [`serve`]: the memory server: HTTP and websocket streaming of pages in
 //!   priority order, shared page cache, prefetch, metrics.
 
+pub mod allocator;
 pub mod build;
 pub mod cli;
 pub mod import;

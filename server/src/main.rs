@@ -3,7 +3,12 @@
 use std::process::ExitCode;
 
 use clap::Parser;
+use farfield_server::allocator::HugePageAlloc;
 use farfield_server::cli::{Cli, run};
+
+/// Large build arrays on huge pages: see [`farfield_server::allocator`].
+#[global_allocator]
+static ALLOCATOR: HugePageAlloc = HugePageAlloc;
 
 fn main() -> ExitCode {
     tracing_subscriber::fmt()

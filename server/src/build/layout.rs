@@ -68,14 +68,18 @@ pub fn lay_out(tree: Tree, input: LayoutInput) -> PagedFile {
     pages.add_group(depth, &root_bytes[..node_bytes], next_child);
     next_child += root_record.children.get() as u64;
     nodes += 1;
-    let mut level: Vec<Parent> = Vec::new();
+    // A level is the list of its interior nodes, held as the lists the
+    // tasks of the level above produced (each exactly sized): joining them
+    // into one vector would hold a level twice, and growing it would hold
+    // it up to three times, at the build's memory peak.
+    let mut level: Vec<Vec<Parent>> = Vec::new();
     // `quantize` gives every interior node its quantized sphere.
     if let (Err(node), Some((center, radius))) = (root.get(), root_sphere) {
-        level.push(Parent {
+        level.push(vec![Parent {
             node: node as u32,
             center,
             radius,
-        });
+        }]);
     } else if let Ok(l) = root.get() {
         leaves += 1;
         if input.record_leaf_sources {
@@ -86,16 +90,30 @@ pub fn lay_out(tree: Tree, input: LayoutInput) -> PagedFile {
         pages.end_level();
         depth += 1;
         let mut next = Vec::new();
-        for window in level.chunks(LAYOUT_CHUNK) {
+        let mut lists = level.into_iter().peekable();
+        while lists.peek().is_some() {
+            // A window of lists, freed once placed.
+            let mut window = Vec::new();
+            let mut parents = 0;
+            while parents < LAYOUT_CHUNK
+                && let Some(list) = lists.next()
+            {
+                parents += list.len();
+                window.push(list);
+            }
             // Quantize this window's sibling groups on all threads (each
             // reads only its parent's quantized sphere, carried in `Parent`),
             // then place the records in order: the only serial work is
             // copying record bytes into pages.
-            let placed: Vec<PlacedGroups> = window
-                .par_chunks(LAYOUT_GRAIN)
+            let tasks: Vec<&[Parent]> = window
+                .iter()
+                .flat_map(|list| list.chunks(LAYOUT_GRAIN))
+                .collect();
+            let placed: Vec<PlacedGroups> = tasks
+                .par_iter()
                 .map(|parents| quantize_groups(&tree, parents, input.layout))
                 .collect();
-            for (parents, placed) in window.chunks(LAYOUT_GRAIN).zip(placed) {
+            for (parents, placed) in tasks.iter().zip(placed) {
                 let mut offset = 0;
                 for (parent, &(count, grandchildren)) in parents.iter().zip(&placed.groups) {
                     let end = offset + usize::from(count) * node_bytes;
@@ -113,7 +131,9 @@ pub fn lay_out(tree: Tree, input: LayoutInput) -> PagedFile {
                     nodes += u64::from(count);
                 }
                 leaves += placed.leaves;
-                next.extend_from_slice(&placed.next);
+                if !placed.next.is_empty() {
+                    next.push(placed.next);
+                }
             }
         }
         level = next;
@@ -178,11 +198,20 @@ struct PlacedGroups {
 
 fn quantize_groups(tree: &Tree, parents: &[Parent], layout: NodeLayout) -> PlacedGroups {
     let node_bytes = layout.bytes() as usize;
+    // Exact sizes, from the child references alone: these lists make up
+    // the next level, which lives through the memory peak.
+    let (mut children, mut interior) = (0, 0);
+    for parent in parents {
+        let node = &tree.interior[parent.node as usize];
+        let refs = &node.children[..usize::from(node.child_count)];
+        children += refs.len();
+        interior += refs.iter().filter(|c| c.get().is_err()).count();
+    }
     let mut placed = PlacedGroups {
-        bytes: Vec::with_capacity(parents.len() * 4 * node_bytes),
+        bytes: Vec::with_capacity(children * node_bytes),
         groups: Vec::with_capacity(parents.len()),
         leaves: 0,
-        next: Vec::with_capacity(parents.len() * 2),
+        next: Vec::with_capacity(interior),
     };
     for parent in parents {
         let node = &tree.interior[parent.node as usize];

@@ -71,29 +71,78 @@ impl List {
         tris: &mut Vec<[u32; 3]>,
     ) -> Option<usize> {
         let before = tris.len();
-        let mut items = Vec::new();
+        let read = match self.item.integer_decoder(self.big) {
+            Some(index_of) => self.integer_lists(bytes, instances, polygon, tris, index_of),
+            None => self.float_lists(bytes, instances, polygon, tris),
+        };
+        if read.is_none() {
+            tris.truncate(before);
+        }
+        read
+    }
+
+    /// Lists of integer indices (nearly every file): decoded straight to
+    /// `u32`, with a triangle (a list of three) pushed as it is. Going
+    /// through `f64` and a scratch list was most of a mesh's import.
+    fn integer_lists(
+        &self,
+        bytes: &[u8],
+        instances: u64,
+        polygon: &mut Polygon,
+        tris: &mut Vec<[u32; 3]>,
+        index_of: fn(&[u8]) -> i64,
+    ) -> Option<usize> {
         let mut pos = 0;
-        let (count_size, item_size) = (self.count.size(), self.item.size());
-        let (count_of, item_of) = (self.count.decoder(self.big), self.item.decoder(self.big));
         for _ in 0..instances {
-            let ok = (|| {
-                let n = count_of(bytes.get(pos..pos + count_size)?);
-                if !is_u32(n) {
-                    return None;
+            let indices = self.next_list(bytes, &mut pos)?.map(index_of);
+            if indices.len() == 3 && !polygon.strips {
+                let mut t = [0; 3];
+                for (slot, i) in t.iter_mut().zip(indices) {
+                    *slot = polygon.index(i)?;
                 }
-                pos += count_size;
-                let end = pos.checked_add((n as usize).checked_mul(item_size)?)?;
-                let list = bytes.get(pos..end)?;
-                items.clear();
-                items.extend(list.chunks_exact(item_size).map(item_of));
-                pos = end;
-                polygon.add(&items, tris).ok()
-            })();
-            if ok.is_none() {
-                tris.truncate(before);
-                return None;
+                tris.push(t);
+            } else {
+                polygon.add_integers(indices, tris)?;
             }
         }
         Some(pos)
+    }
+
+    /// Lists of float indices, read through [`Polygon::add`].
+    fn float_lists(
+        &self,
+        bytes: &[u8],
+        instances: u64,
+        polygon: &mut Polygon,
+        tris: &mut Vec<[u32; 3]>,
+    ) -> Option<usize> {
+        let mut items = Vec::new();
+        let mut pos = 0;
+        let item_of = self.item.decoder(self.big);
+        for _ in 0..instances {
+            items.clear();
+            items.extend(self.next_list(bytes, &mut pos)?.map(item_of));
+            polygon.add(&items, tris).ok()?;
+        }
+        Some(pos)
+    }
+
+    /// The items of the list at `*pos` in `bytes`, each as its bytes; moves
+    /// `*pos` past the list.
+    fn next_list<'b>(
+        &self,
+        bytes: &'b [u8],
+        pos: &mut usize,
+    ) -> Option<std::slice::ChunksExact<'b, u8>> {
+        let (count_size, item_size) = (self.count.size(), self.item.size());
+        let n = self.count.decoder(self.big)(bytes.get(*pos..*pos + count_size)?);
+        if !is_u32(n) {
+            return None;
+        }
+        let start = *pos + count_size;
+        let end = start.checked_add((n as usize).checked_mul(item_size)?)?;
+        let list = bytes.get(start..end)?;
+        *pos = end;
+        Some(list.chunks_exact(item_size))
     }
 }

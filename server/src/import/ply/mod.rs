@@ -42,7 +42,10 @@ const MAX_HEADER: u64 = 1 << 20;
 pub fn load(path: &Path) -> Result<Scene, ImportError> {
     let file = File::open(path).map_err(|e| ImportError::io(path, e))?;
     let file_len = file.metadata().map(|m| m.len()).unwrap_or(0);
-    let mut reader = BufReader::with_capacity(1 << 20, file);
+    // The header needs little; a binary body is read element by element
+    // into its own buffer, so a larger buffer here would only add to the
+    // import's memory peak.
+    let mut reader = BufReader::with_capacity(64 << 10, file);
     let header = read_header(path, &mut reader)?;
     let body_len = file_len.saturating_sub(header.bytes);
     let geometry = match header.format {
@@ -56,22 +59,17 @@ pub fn load(path: &Path) -> Result<Scene, ImportError> {
             read_body(path, &header, body_len, &mut src)
         }
         Format::BinaryLe | Format::BinaryBe => {
-            // The whole body in memory: one read, then every value is a
-            // bounds-checked slice access (a value at a time through a
-            // `BufReader` was 10x slower). Dropped before the build starts.
-            let mut body = Vec::with_capacity(body_len.min(isize::MAX as u64) as usize);
-            reader
-                .read_to_end(&mut body)
-                .map_err(|e| ImportError::io(path, e))?;
             let mut src = Binary {
-                body: &body,
+                reader,
+                unread: body_len,
+                body: Vec::new(),
                 pos: 0,
                 big: header.format == Format::BinaryBe,
             };
             read_body(path, &header, body_len, &mut src)
         }
-    }?;
-    Ok(Scene::single(geometry))
+    };
+    Ok(Scene::single(geometry?))
 }
 
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -142,6 +140,32 @@ impl Scalar {
             };
         }
         decoders!(I8 => i8, U8 => u8, I16 => i16, U16 => u16, I32 => i32, U32 => u32, F32 => f32, F64 => f64)
+    }
+
+    /// A decoder of an integer type straight to `i64`, for index lists;
+    /// `None` for float types. The same bounds-safe reading as
+    /// [`Scalar::decoder`], with `i64::MIN` for a short slice (never an index).
+    fn integer_decoder(self, big: bool) -> Option<fn(&[u8]) -> i64> {
+        macro_rules! decoders {
+            ($($variant:ident => $t:ty),*) => {
+                match (self, big) {
+                    $(
+                        (Self::$variant, false) => Some(|b: &[u8]| {
+                            b.get(..size_of::<$t>())
+                                .and_then(|s| s.try_into().ok())
+                                .map_or(i64::MIN, |a| i64::from(<$t>::from_le_bytes(a)))
+                        }),
+                        (Self::$variant, true) => Some(|b: &[u8]| {
+                            b.get(..size_of::<$t>())
+                                .and_then(|s| s.try_into().ok())
+                                .map_or(i64::MIN, |a| i64::from(<$t>::from_be_bytes(a)))
+                        }),
+                    )*
+                    (Self::F32 | Self::F64, _) => None,
+                }
+            };
+        }
+        decoders!(I8 => i8, U8 => u8, I16 => i16, U16 => u16, I32 => i32, U32 => u32)
     }
 }
 
@@ -309,16 +333,51 @@ trait Values {
     }
     /// Marks `n` bytes of [`Values::binary_rest`] as read.
     fn consume(&mut self, _n: usize) {}
+    /// Called before each element is read.
+    fn begin_element(&mut self, _element: &Element) -> io::Result<()> {
+        Ok(())
+    }
 }
 
-/// A binary body held in memory, read front to back.
-struct Binary<'a> {
-    body: &'a [u8],
+/// A binary body, read into memory an element at a time and decoded from
+/// there: each value is a bounds-checked slice access (a value at a time
+/// through a `BufReader` was 10x slower). An element of fixed-size records
+/// (the vertices) is read alone and dropped before the next is read, so
+/// the file's bytes are never all in memory beside what they decode to.
+struct Binary<R> {
+    reader: R,
+    /// Body bytes not yet read from `reader` (at most; the file may be
+    /// shorter than its header says, which the decoders report).
+    unread: u64,
+    body: Vec<u8>,
     pos: usize,
     big: bool,
 }
 
-impl Values for Binary<'_> {
+impl<R: Read> Binary<R> {
+    /// Makes the next `len` body bytes (or all the rest) readable from
+    /// `body`, freeing the bytes already decoded.
+    fn load(&mut self, len: Option<u64>) -> io::Result<()> {
+        let kept = self.body.len() - self.pos;
+        let wanted = len.map_or(self.unread, |n| {
+            n.saturating_sub(kept as u64).min(self.unread)
+        });
+        if wanted == 0 {
+            return Ok(());
+        }
+        let capacity = usize::try_from(wanted).unwrap_or(usize::MAX);
+        let mut body = Vec::with_capacity(kept.saturating_add(capacity));
+        body.extend_from_slice(&self.body[self.pos..]);
+        self.body = Vec::new();
+        let read = (&mut self.reader).take(wanted).read_to_end(&mut body)?;
+        self.unread -= read as u64;
+        self.body = body;
+        self.pos = 0;
+        Ok(())
+    }
+}
+
+impl<R: Read> Values for Binary<R> {
     fn value(&mut self, ty: Scalar) -> Result<f64, BodyError> {
         let n = ty.size();
         let bytes = self
@@ -345,6 +404,12 @@ impl Values for Binary<'_> {
 
     fn consume(&mut self, n: usize) {
         self.pos += n;
+    }
+
+    fn begin_element(&mut self, element: &Element) -> io::Result<()> {
+        let fixed = fast::FixedLayout::of(element)
+            .and_then(|layout| element.count.checked_mul(layout.stride as u64));
+        self.load(fixed)
     }
 }
 
@@ -477,6 +542,9 @@ fn read_body<V: Values>(
         if element.props.is_empty() {
             continue;
         }
+        body.src
+            .begin_element(element)
+            .map_err(|e| ImportError::io(path, e))?;
         let cap = element
             .count
             .min(body_len / element.min_bytes(header.format)) as usize;
@@ -694,6 +762,39 @@ impl Polygon {
                 ));
             }
         }
+        self.finish(tris)
+    }
+
+    /// [`Polygon::add`] for integer indices; `None` on anything amiss (the
+    /// caller reads the list again through `add`, which says what).
+    fn add_integers(
+        &mut self,
+        items: impl Iterator<Item = i64>,
+        tris: &mut Vec<[u32; 3]>,
+    ) -> Option<()> {
+        self.indices.clear();
+        for v in items {
+            if self.strips && v == -1 {
+                strip(&self.indices, tris);
+                self.indices.clear();
+            } else {
+                let i = self.index(v)?;
+                self.indices.push(i);
+            }
+        }
+        self.finish(tris).ok()
+    }
+
+    /// `v` as a vertex index, if it is one.
+    fn index(&self, v: i64) -> Option<u32> {
+        u32::try_from(v)
+            .ok()
+            .filter(|&i| u64::from(i) < self.vertex_count)
+    }
+
+    /// Triangulates the indices gathered since the last restart.
+    fn finish(&self, tris: &mut Vec<[u32; 3]>) -> Result<(), String> {
+        let poly = &self.indices;
         if self.strips {
             strip(poly, tris);
         } else if poly.len() < 3 {

