@@ -1,5 +1,3 @@
-//! How the builder's memory is allocated and given back.
-//!
 //! [`HugePageAlloc`]: the system allocator, asking Linux for transparent
 //! huge pages on large blocks.
 //!
@@ -14,10 +12,6 @@
 //! within 1.2 %. Elsewhere, or where the kernel says no, nothing changes.
 //!
 //! Binaries opt in with `#[global_allocator]`; the library never does.
-//!
-//! [`release_free_memory`]: hands the allocator's freed pages back to the
-//! system between build steps, so one step's leftovers do not add to the
-//! next step's peak.
 
 use std::alloc::{GlobalAlloc, Layout, System};
 
@@ -85,22 +79,6 @@ fn advise(block: *mut u8, len: usize) {
 
 #[cfg(not(target_os = "linux"))]
 fn advise(_block: *mut u8, _len: usize) {}
-
-/// Returns the allocator's free pages to the system.
-///
-/// glibc keeps freed memory inside its heaps for reuse, and the threads'
-/// heaps cannot lend to each other, so a build step's freed arrays (the
-/// scene, once its leaves exist) stay resident through the next step and
-/// add to the build's peak: horse.ply's peak was 16 % higher without this.
-/// Elsewhere this does nothing.
-pub fn release_free_memory() {
-    #[cfg(all(target_os = "linux", target_env = "gnu"))]
-    // SAFETY: `malloc_trim` only returns free memory; no allocation is
-    // touched.
-    unsafe {
-        libc::malloc_trim(0);
-    }
-}
 
 #[cfg(test)]
 mod tests {

@@ -6,8 +6,8 @@
 //! - [`build`]: the QSplat bounding-sphere builder: leaf sizing, tree,
 //!   quantization and the breadth-first page layout.
 //! - [`cli`]: the `farfield-server` subcommands, callable in-process.
-//! - [`allocator`]: the allocator the binaries use (transparent huge pages
-//!   for the builder's large arrays) and the return of freed memory.
+//! - [`allocator`]: the allocator the binaries use, asking for transparent
+//!   huge pages on the builder's large arrays.
 //! - [`store`]: writes the paged file atomically and reads it back through a
 //!   memory map, verifying page checksums.
 //! - [`serve`]: the memory server: HTTP and websocket streaming of pages in

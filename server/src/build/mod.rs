@@ -97,8 +97,6 @@ pub fn build_spheres(
     if leaf_list.is_empty() {
         return Err(BuildError::Empty);
     }
-    // The scene is gone; its memory should not linger into the tree step.
-    crate::allocator::release_free_memory();
     let measured = measure(&leaf_list);
     let (bounds_min, bounds_max) = measured.bounds;
     apply_radius_floor(&mut leaf_list, &measured);

@@ -60,13 +60,16 @@ pub(super) fn build(leaves: &mut [Leaf], all: Bounds) -> (InteriorNodes, NodeRef
     let mut rest = leaves;
     for &(start, end, bounds, depth) in &tasks {
         let (range, tail) = std::mem::take(&mut rest).split_at_mut(end - start);
-        work.push((range, start, bounds, depth));
+        // The node list is allocated here, on the calling thread: its
+        // allocator heap holds the scene's freed memory, which a worker
+        // thread's heap cannot reuse.
+        let nodes = Vec::with_capacity(interior_capacity(range.len()));
+        work.push((range, start, bounds, depth, nodes));
         rest = tail;
     }
     let built: Vec<Built> = work
         .into_par_iter()
-        .map(|(range, start, bounds, depth)| {
-            let mut nodes = Vec::with_capacity(interior_capacity(range.len()));
+        .map(|(range, start, bounds, depth, mut nodes)| {
             let (root, summary, collapsed) = build_range(range, bounds, start, depth, &mut nodes);
             // The unused room, freed: on huge pages up to 2 MiB of it per
             // task would be resident.
