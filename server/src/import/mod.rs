@@ -22,6 +22,8 @@ use std::path::{Path, PathBuf};
 
 pub use params::Params;
 
+use rayon::prelude::*;
+
 use crate::scene::{Primitives, Scene};
 
 /// Why an input could not become a scene. Every message names the input and,
@@ -112,7 +114,14 @@ pub fn validate(path: &Path, scene: &Scene) -> Result<(), ImportError> {
     }
     for geometry in &scene.geometries {
         let n = geometry.positions.len();
-        if let Some(i) = geometry.positions.iter().position(|p| !p.is_finite()) {
+        // On all threads: for a scanned mesh these two scans were a fifth of
+        // its (otherwise serial) import. The first offender is still the
+        // one reported.
+        if let Some(i) = geometry
+            .positions
+            .par_iter()
+            .position_first(|p| !p.is_finite())
+        {
             let p = geometry.positions[i];
             return Err(ImportError::malformed(
                 path,
@@ -139,14 +148,17 @@ pub fn validate(path: &Path, scene: &Scene) -> Result<(), ImportError> {
         }
         match &geometry.primitives {
             Primitives::Triangles(triangles) => {
-                for (t, tri) in triangles.iter().enumerate() {
-                    if let Some(&bad) = tri.iter().find(|&&i| i as usize >= n) {
-                        return Err(ImportError::malformed(
-                            path,
-                            format!("face {t}"),
-                            format!("vertex index {bad} is out of range ({n} vertices)"),
-                        ));
-                    }
+                let out_of_range = |tri: &[u32; 3]| tri.iter().any(|&i| i as usize >= n);
+                if let Some(t) = triangles.par_iter().position_first(out_of_range) {
+                    let bad = triangles[t].iter().find(|&&i| i as usize >= n);
+                    return Err(ImportError::malformed(
+                        path,
+                        format!("face {t}"),
+                        format!(
+                            "vertex index {} is out of range ({n} vertices)",
+                            bad.copied().unwrap_or_default()
+                        ),
+                    ));
                 }
             }
             Primitives::Points => {}
