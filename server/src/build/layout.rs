@@ -199,7 +199,9 @@ struct PlacedGroups {
 fn quantize_groups(tree: &Tree, parents: &[Parent], layout: NodeLayout) -> PlacedGroups {
     let node_bytes = layout.bytes() as usize;
     // Exact sizes, from the child references alone: these lists make up
-    // the next level, which lives through the memory peak.
+    // the next level, which lives through the memory peak. (Room for four
+    // children each, shrunk afterwards, raised horse's peak by about 5 %:
+    // the heap's small blocks are resident, used or not.)
     let (mut children, mut interior) = (0, 0);
     for parent in parents {
         let node = &tree.interior[parent.node as usize];

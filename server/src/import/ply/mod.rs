@@ -79,6 +79,30 @@ enum Format {
     BinaryBe,
 }
 
+/// `Some` decoding function for each listed `Scalar` variant and byte order:
+/// it reads the variant's type from the front of a slice as `$out`, or
+/// gives `$short` when the slice is too short; `None` for unlisted variants.
+macro_rules! decoders {
+    ($scalar:expr, $big:expr, $out:ty, $short:expr; $($variant:ident => $t:ty),*) => {
+        #[allow(unreachable_patterns)]
+        match ($scalar, $big) {
+            $(
+                (Scalar::$variant, false) => Some((|b: &[u8]| {
+                    b.get(..size_of::<$t>())
+                        .and_then(|s| s.try_into().ok())
+                        .map_or($short, |a| <$out>::from(<$t>::from_le_bytes(a)))
+                }) as fn(&[u8]) -> $out),
+                (Scalar::$variant, true) => Some((|b: &[u8]| {
+                    b.get(..size_of::<$t>())
+                        .and_then(|s| s.try_into().ok())
+                        .map_or($short, |a| <$out>::from(<$t>::from_be_bytes(a)))
+                }) as fn(&[u8]) -> $out),
+            )*
+            _ => None,
+        }
+    };
+}
+
 #[derive(Debug, Clone, Copy, PartialEq)]
 enum Scalar {
     I8,
@@ -121,51 +145,17 @@ impl Scalar {
     /// chosen once per property: decoding through a `match` per value made
     /// the branch on the type the import's hottest instruction.
     fn decoder(self, big: bool) -> fn(&[u8]) -> f64 {
-        macro_rules! decoders {
-            ($($variant:ident => $t:ty),*) => {
-                match (self, big) {
-                    $(
-                        (Self::$variant, false) => |b: &[u8]| {
-                            b.get(..size_of::<$t>())
-                                .and_then(|s| s.try_into().ok())
-                                .map_or(f64::NAN, |a| f64::from(<$t>::from_le_bytes(a)))
-                        },
-                        (Self::$variant, true) => |b: &[u8]| {
-                            b.get(..size_of::<$t>())
-                                .and_then(|s| s.try_into().ok())
-                                .map_or(f64::NAN, |a| f64::from(<$t>::from_be_bytes(a)))
-                        },
-                    )*
-                }
-            };
-        }
-        decoders!(I8 => i8, U8 => u8, I16 => i16, U16 => u16, I32 => i32, U32 => u32, F32 => f32, F64 => f64)
+        decoders!(self, big, f64, f64::NAN;
+            I8 => i8, U8 => u8, I16 => i16, U16 => u16, I32 => i32, U32 => u32, F32 => f32, F64 => f64)
+        .unwrap_or(|_| f64::NAN)
     }
 
     /// A decoder of an integer type straight to `i64`, for index lists;
-    /// `None` for float types. The same bounds-safe reading as
-    /// [`Scalar::decoder`], with `i64::MIN` for a short slice (never an index).
+    /// `None` for float types. Like [`Scalar::decoder`], with `i64::MIN`
+    /// for a short slice (never an index).
     fn integer_decoder(self, big: bool) -> Option<fn(&[u8]) -> i64> {
-        macro_rules! decoders {
-            ($($variant:ident => $t:ty),*) => {
-                match (self, big) {
-                    $(
-                        (Self::$variant, false) => Some(|b: &[u8]| {
-                            b.get(..size_of::<$t>())
-                                .and_then(|s| s.try_into().ok())
-                                .map_or(i64::MIN, |a| i64::from(<$t>::from_le_bytes(a)))
-                        }),
-                        (Self::$variant, true) => Some(|b: &[u8]| {
-                            b.get(..size_of::<$t>())
-                                .and_then(|s| s.try_into().ok())
-                                .map_or(i64::MIN, |a| i64::from(<$t>::from_be_bytes(a)))
-                        }),
-                    )*
-                    (Self::F32 | Self::F64, _) => None,
-                }
-            };
-        }
-        decoders!(I8 => i8, U8 => u8, I16 => i16, U16 => u16, I32 => i32, U32 => u32)
+        decoders!(self, big, i64, i64::MIN;
+            I8 => i8, U8 => u8, I16 => i16, U16 => u16, I32 => i32, U32 => u32)
     }
 }
 
