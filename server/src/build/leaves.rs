@@ -156,49 +156,94 @@ fn local_leaves(geometry: Geometry, has_color: bool) -> (Vec<Leaf>, u64) {
         }
     };
     let up = pack_normal(Vec3::Z);
-    let mut leaves: Vec<Leaf> = positions
-        .iter()
-        .enumerate()
-        .map(|(i, &position)| Leaf {
-            position,
-            radius: 0.0,
-            normal: up,
-            color: color_of(i),
-            cone: 255,
-            source: i as u32,
-        })
-        .collect();
-    drop(positions);
-    drop(colors);
+    let bare = |i: usize| Leaf {
+        position: positions[i],
+        radius: 0.0,
+        normal: up,
+        color: color_of(i),
+        cone: 255,
+        source: i as u32,
+    };
     match primitives {
         Primitives::Triangles(triangles) => {
-            let unreferenced = size_from_triangles(&mut leaves, &triangles, normals);
+            // Sized from the compact positions, before the leaves exist:
+            // the triangle walks read 24 bytes a corner, not a 40-byte leaf,
+            // and each leaf is then written once, whole, on all threads.
+            let sizes = size_from_triangles(&positions, &triangles, normals);
             drop(triangles);
+            let unreferenced = sizes.radius.iter().filter(|&&r| r < 0.0).count() as u64;
+            let mut leaves: Vec<Leaf> = (0..positions.len())
+                .into_par_iter()
+                .with_min_len(LEAVES_PER_TASK)
+                .map(|i| sizes.apply(i, bare(i)))
+                .collect();
             if unreferenced > 0 {
                 leaves.retain(|l| !is_unreferenced(l));
             }
             (leaves, unreferenced)
         }
         Primitives::Points => {
+            let mut leaves: Vec<Leaf> = (0..positions.len()).map(bare).collect();
+            drop(positions);
+            drop(colors);
             super::knn::size_points(&mut leaves, normals.as_deref());
             (leaves, 0)
         }
         Primitives::Spheres(radii) => {
-            for (leaf, r) in leaves.iter_mut().zip(radii) {
-                leaf.radius = r as f32;
-            }
+            let leaves = (0..positions.len())
+                .map(|i| Leaf {
+                    radius: radii[i] as f32,
+                    ..bare(i)
+                })
+                .collect();
             (leaves, 0)
         }
     }
 }
+
+/// Leaves per parallel task where each leaf is little work.
+const LEAVES_PER_TASK: usize = 1 << 12;
 
 /// Vertices no triangle touched carry a negative radius until dropped.
 fn is_unreferenced(leaf: &Leaf) -> bool {
     leaf.radius < 0.0
 }
 
-/// Sizes mesh vertices from their triangles; returns the number of vertices
-/// no triangle uses, which are marked with a negative radius and dropped.
+/// What the triangles around each vertex say about its leaf.
+struct VertexSizes {
+    /// Largest bounding radius of the incident triangles; -1 for none.
+    radius: Vec<f32>,
+    /// Unit vertex normal (the input's, or the area-weighted face normal);
+    /// zero where there is none.
+    normal: Vec<Vec3>,
+    /// Smallest cosine between the vertex normal and an incident face's.
+    min_cos: Vec<f32>,
+}
+
+impl VertexSizes {
+    /// `leaf` (vertex `i`) with its radius, normal and cone.
+    fn apply(&self, i: usize, leaf: Leaf) -> Leaf {
+        let (r, nv, c) = (self.radius[i], self.normal[i], self.min_cos[i]);
+        if r >= 0.0 && nv != Vec3::ZERO {
+            Leaf {
+                radius: r,
+                normal: pack_normal(nv),
+                // A little margin for the f32 arithmetic of the cosines.
+                cone: cone_to_u8(acos_upper(f64::from(c)) + 1e-4),
+                ..leaf
+            }
+        } else {
+            Leaf {
+                radius: r,
+                cone: 255,
+                ..leaf
+            }
+        }
+    }
+}
+
+/// Sizes mesh vertices from their triangles. Vertices no triangle uses get
+/// a negative radius (they are dropped).
 ///
 /// The vertices are cut into one contiguous range per thread, and each
 /// thread walks all the triangles, doing the work of those corners that
@@ -208,22 +253,24 @@ fn is_unreferenced(leaf: &Leaf) -> bool {
 /// is measured twice; meshes keep neighbours close in the vertex order, so
 /// that is rare.
 fn size_from_triangles(
-    leaves: &mut [Leaf],
+    positions: &[DVec3],
     triangles: &[[u32; 3]],
     normals: Option<Vec<Vec3>>,
-) -> u64 {
+) -> VertexSizes {
     // Working memory is a radius, a normal and a cosine per vertex.
-    let n = leaves.len();
+    let n = positions.len();
     let have_normals = normals.is_some();
-    let mut normal = normals.unwrap_or_else(|| vec![Vec3::ZERO; n]);
-    let mut radius = vec![-1.0f32; n];
-    let mut min_cos = vec![1.0f32; n];
+    let mut sizes = VertexSizes {
+        normal: normals.unwrap_or_else(|| vec![Vec3::ZERO; n]),
+        radius: vec![-1.0f32; n],
+        min_cos: vec![1.0f32; n],
+    };
     let range_len = n.div_ceil(rayon::current_num_threads().max(1)).max(1 << 14);
-    let positions = &*leaves;
-    radius
+    sizes
+        .radius
         .par_chunks_mut(range_len)
-        .zip(normal.par_chunks_mut(range_len))
-        .zip(min_cos.par_chunks_mut(range_len))
+        .zip(sizes.normal.par_chunks_mut(range_len))
+        .zip(sizes.min_cos.par_chunks_mut(range_len))
         .enumerate()
         .for_each(|(part, ((radius, normal), min_cos))| {
             let first = part * range_len;
@@ -235,26 +282,7 @@ fn size_from_triangles(
             };
             range.size(positions, triangles, have_normals);
         });
-    let mut unreferenced = 0;
-    for r in &radius {
-        unreferenced += u64::from(*r < 0.0);
-    }
-    leaves
-        .par_iter_mut()
-        .zip(radius.par_iter())
-        .zip(normal.par_iter())
-        .zip(min_cos.par_iter())
-        .for_each(|(((leaf, &r), &nv), &c)| {
-            leaf.radius = r;
-            if r >= 0.0 && nv != Vec3::ZERO {
-                leaf.normal = pack_normal(nv);
-                // A little margin for the f32 arithmetic of the cosines.
-                leaf.cone = cone_to_u8(acos_upper(f64::from(c)) + 1e-4);
-            } else {
-                leaf.cone = 255;
-            }
-        });
-    unreferenced
+    sizes
 }
 
 /// One thread's share of [`size_from_triangles`]: the working values of the
@@ -278,13 +306,13 @@ impl VertexRange<'_> {
         })
     }
 
-    fn size(&mut self, leaves: &[Leaf], triangles: &[[u32; 3]], have_normals: bool) {
+    fn size(&mut self, positions: &[DVec3], triangles: &[[u32; 3]], have_normals: bool) {
         for tri in triangles {
             let owned = self.owned(tri);
             if owned == [None; 3] {
                 continue;
             }
-            let [a, b, c] = tri.map(|i| leaves[i as usize].position);
+            let [a, b, c] = tri.map(|i| positions[i as usize]);
             let (r, face) = bounding_radius_and_face(a, b, c);
             // Rounded up to f32 per triangle: the max of round-ups never shrinks.
             let r = round_up_f32(r);
@@ -307,7 +335,7 @@ impl VertexRange<'_> {
             if owned == [None; 3] {
                 continue;
             }
-            let [a, b, c] = tri.map(|i| leaves[i as usize].position);
+            let [a, b, c] = tri.map(|i| positions[i as usize]);
             let Some(face) = (b - a).cross(c - a).try_normalize() else {
                 continue;
             };

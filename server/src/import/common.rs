@@ -2,6 +2,7 @@
 //! the repair of unusable input normals.
 
 use glam::{DVec3, Vec3};
+use rayon::prelude::*;
 
 /// Fan-triangulates a convex polygon: `(p0, p[i], p[i+1])`.
 pub(crate) fn fan(polygon: &[u32], out: &mut Vec<[u32; 3]>) {
@@ -24,19 +25,33 @@ pub(crate) fn unit_normals(
     positions: &[DVec3],
     triangles: Option<&[[u32; 3]]>,
 ) -> Option<Vec<Vec3>> {
-    let mut bad = Vec::new();
-    for (i, n) in normals.iter_mut().enumerate() {
-        let d = n.as_dvec3();
-        let len = d.length();
-        if len > 0.0 && len.is_finite() {
-            *n = (d / len).as_vec3();
-        } else {
-            bad.push(i);
-        }
-    }
-    if bad.is_empty() {
+    // On all threads; an unusable normal is left as it is and found again
+    // below (there are none in nearly every file).
+    let all_usable = normals
+        .par_chunks_mut(1 << 12)
+        .map(|chunk| {
+            let mut usable = true;
+            for n in chunk {
+                let d = n.as_dvec3();
+                let len = d.length();
+                if len > 0.0 && len.is_finite() {
+                    *n = (d / len).as_vec3();
+                } else {
+                    usable = false;
+                }
+            }
+            usable
+        })
+        .reduce(|| true, |a, b| a && b);
+    if all_usable {
         return Some(normals);
     }
+    let bad: Vec<usize> = (0..normals.len())
+        .filter(|&i| {
+            let len = normals[i].as_dvec3().length();
+            !(len > 0.0 && len.is_finite())
+        })
+        .collect();
     let triangles = triangles.filter(|t| !t.is_empty())?;
     let mut sums = vec![DVec3::ZERO; positions.len()];
     for t in triangles {

@@ -117,11 +117,7 @@ pub fn validate(path: &Path, scene: &Scene) -> Result<(), ImportError> {
         // On all threads: for a scanned mesh these two scans were a fifth of
         // its (otherwise serial) import. The first offender is still the
         // one reported.
-        if let Some(i) = geometry
-            .positions
-            .par_iter()
-            .position_first(|p| !p.is_finite())
-        {
+        if let Some(i) = first_where(&geometry.positions, |p| !p.is_finite()) {
             let p = geometry.positions[i];
             return Err(ImportError::malformed(
                 path,
@@ -149,7 +145,7 @@ pub fn validate(path: &Path, scene: &Scene) -> Result<(), ImportError> {
         match &geometry.primitives {
             Primitives::Triangles(triangles) => {
                 let out_of_range = |tri: &[u32; 3]| tri.iter().any(|&i| i as usize >= n);
-                if let Some(t) = triangles.par_iter().position_first(out_of_range) {
+                if let Some(t) = first_where(triangles, out_of_range) {
                     let bad = triangles[t].iter().find(|&&i| i as usize >= n);
                     return Err(ImportError::malformed(
                         path,
@@ -190,4 +186,38 @@ pub fn validate(path: &Path, scene: &Scene) -> Result<(), ImportError> {
         }
     }
     Ok(())
+}
+
+/// The index of the first item for which `pred` holds, searched on all
+/// threads a chunk at a time. Rayon's per-item `position_first` splits the
+/// slice down to single items: on a 48 000-vertex mesh it took 4 to 20
+/// times as long as a serial scan, and on 4 million items 3.6 times as long
+/// as this.
+fn first_where<T: Sync>(items: &[T], pred: impl Fn(&T) -> bool + Sync) -> Option<usize> {
+    const CHUNK: usize = 1 << 14;
+    let chunk = items
+        .par_chunks(CHUNK)
+        .position_first(|c| c.iter().any(&pred))?;
+    let start = chunk * CHUNK;
+    items[start..].iter().position(pred).map(|i| start + i)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::first_where;
+
+    #[test]
+    fn first_where_finds_the_first_match_in_any_chunk() {
+        let mut items = vec![0u32; 100_000];
+        assert_eq!(first_where(&items, |&v| v != 0), None);
+        // Matches in a late chunk, then an earlier one, then at the very
+        // start: each time the lowest index wins.
+        items[99_999] = 1;
+        items[70_000] = 1;
+        assert_eq!(first_where(&items, |&v| v != 0), Some(70_000));
+        items[16_385] = 1;
+        assert_eq!(first_where(&items, |&v| v != 0), Some(16_385));
+        items[0] = 1;
+        assert_eq!(first_where(&items, |&v| v != 0), Some(0));
+    }
 }

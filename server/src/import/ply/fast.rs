@@ -7,7 +7,15 @@
 //! reads the element value by value, which names the instance that failed.
 //! So these paths never decide what an error says.
 
+use std::sync::atomic::{AtomicBool, Ordering};
+
+use rayon::prelude::*;
+
 use super::{Element, Kind, Polygon, Scalar, is_u32};
+
+/// Records (vertices, triangles) per parallel task: large enough that the
+/// tasks' overhead stays small beside their work.
+const RECORDS_PER_TASK: usize = 1 << 12;
 
 /// Where each property of an all-scalar element lies in its record.
 pub(super) struct FixedLayout {
@@ -35,14 +43,26 @@ impl FixedLayout {
         })
     }
 
-    /// The first `count` records of `bytes`, or `None` if it is too short.
-    pub fn records<'b>(
-        &self,
-        bytes: &'b [u8],
-        count: u64,
-    ) -> Option<std::slice::ChunksExact<'b, u8>> {
+    /// The bytes of the first `count` records of `bytes`, or `None` if it
+    /// is too short.
+    pub fn records<'b>(&self, bytes: &'b [u8], count: u64) -> Option<&'b [u8]> {
         let len = usize::try_from(count).ok()?.checked_mul(self.stride)?;
-        Some(bytes.get(..len)?.chunks_exact(self.stride))
+        bytes.get(..len)
+    }
+
+    /// Decodes every record of `records` with `item` into `out` (which it
+    /// replaces), on all threads.
+    pub fn decode_all<T: Send>(
+        &self,
+        records: &[u8],
+        out: &mut Vec<T>,
+        item: impl Fn(&[u8]) -> T + Sync + Send,
+    ) {
+        records
+            .par_chunks_exact(self.stride)
+            .with_min_len(RECORDS_PER_TASK)
+            .map(item)
+            .collect_into_vec(out);
     }
 
     /// A reader of property `i` from records of [`FixedLayout::records`].
@@ -72,13 +92,65 @@ impl List {
     ) -> Option<usize> {
         let before = tris.len();
         let read = match self.item.integer_decoder(self.big) {
-            Some(index_of) => self.integer_lists(bytes, instances, polygon, tris, index_of),
+            Some(index_of) => self
+                .triangle_lists(bytes, instances, polygon, tris, index_of)
+                .or_else(|| self.integer_lists(bytes, instances, polygon, tris, index_of)),
             None => self.float_lists(bytes, instances, polygon, tris),
         };
         if read.is_none() {
             tris.truncate(before);
         }
         read
+    }
+
+    /// Faces that are all triangles (most meshes): records of one size,
+    /// decoded on all threads. `None` (and `tris` as it was) when a face is
+    /// not a triangle or an index is out of range; the serial paths then
+    /// read the element again.
+    fn triangle_lists(
+        &self,
+        bytes: &[u8],
+        instances: u64,
+        polygon: &Polygon,
+        tris: &mut Vec<[u32; 3]>,
+        index_of: fn(&[u8]) -> i64,
+    ) -> Option<usize> {
+        if polygon.strips {
+            return None;
+        }
+        let (count_size, item_size) = (self.count.size(), self.item.size());
+        let stride = count_size + 3 * item_size;
+        let len = usize::try_from(instances).ok()?.checked_mul(stride)?;
+        let records = bytes.get(..len)?;
+        let count_of = self.count.decoder(self.big);
+        let all_triangles = records
+            .par_chunks_exact(stride)
+            .with_min_len(RECORDS_PER_TASK)
+            .all(|r| count_of(r) == 3.0);
+        if !all_triangles {
+            return None;
+        }
+        let out_of_range = AtomicBool::new(false);
+        let before = tris.len();
+        tris.par_extend(
+            records
+                .par_chunks_exact(stride)
+                .with_min_len(RECORDS_PER_TASK)
+                .map(|r| {
+                    std::array::from_fn(|k| {
+                        let at = count_size + k * item_size;
+                        polygon.index(index_of(&r[at..])).unwrap_or_else(|| {
+                            out_of_range.store(true, Ordering::Relaxed);
+                            0
+                        })
+                    })
+                }),
+        );
+        if out_of_range.into_inner() {
+            tris.truncate(before);
+            return None;
+        }
+        Some(len)
     }
 
     /// Lists of integer indices (nearly every file): decoded straight to

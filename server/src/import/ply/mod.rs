@@ -635,20 +635,20 @@ impl<V: Values> Body<'_, V> {
             && let Some(records) = fields.records(rest, element.count)
         {
             let [x, y, z] = [x, y, z].map(|i| fields.reader(i, big));
-            positions.extend(records.clone().map(|r| DVec3::new(x(r), y(r), z(r))));
+            fields.decode_all(records, &mut positions, |r| DVec3::new(x(r), y(r), z(r)));
             if let (Some(ns), Some(n)) = (normals.as_mut(), normal) {
                 let [x, y, z] = n.map(|i| fields.reader(i, big));
-                ns.extend(
-                    records
-                        .clone()
-                        .map(|r| Vec3::new(x(r) as f32, y(r) as f32, z(r) as f32)),
-                );
+                fields.decode_all(records, ns, |r| {
+                    Vec3::new(x(r) as f32, y(r) as f32, z(r) as f32)
+                });
             }
             if let (Some(cs), Some(c)) = (colors.as_mut(), color) {
                 let [r, g, b] = c.map(|i| (fields.reader(i, big), ty(i)));
-                cs.extend(records.map(|rec| [&r, &g, &b].map(|(read, t)| channel(read(rec), *t))));
+                fields.decode_all(records, cs, |rec| {
+                    [&r, &g, &b].map(|(read, t)| channel(read(rec), *t))
+                });
             }
-            self.src.consume(fields.stride * positions.len());
+            self.src.consume(records.len());
             return Ok(Vertices {
                 positions,
                 normals,
