@@ -2,8 +2,9 @@
 //!
 //! Nodes are visited level by level. Each sibling group is quantized
 //! against its parent's *quantized* sphere, top-down, so quantization error
-//! never accumulates with depth; an interior node's quantized sphere travels
-//! with it to the next level, where its children need it. Records go
+//! never accumulates with depth; an interior node's quantized sphere
+//! replaces its true one in the tree (through [`SharedNodes`]), where its
+//! children find it at the next level. Records go
 //! into pages in breadth-first order; a page holds whole sibling groups and
 //! page 0 ends on a level boundary, so it is a complete coarse model.
 
@@ -13,8 +14,8 @@ use farfield_protocol::sphere_codec::{self, ChildCount, NodeLayout, NodeRecord};
 use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 
-use super::leaves::{cone_from_u8, unpack_normal};
-use super::tree::{NodeRef, Tree};
+use super::leaves::{Leaf, cone_from_u8, unpack_normal};
+use super::tree::{NodeRef, SharedNodes, Tree};
 
 /// A finished file: header and page bytes, ready to be written.
 #[derive(Debug)]
@@ -41,18 +42,32 @@ pub struct LayoutInput {
 pub fn lay_out(tree: Tree, input: LayoutInput) -> PagedFile {
     let node_bytes = input.layout.bytes() as usize;
     let mut pages = PageCutter::new(input.page_bytes, node_bytes);
-    let (root_center, root_radius) = match tree.root.get() {
-        Ok(l) => (tree.leaves[l].position, f64::from(tree.leaves[l].radius)),
-        Err(i) => (tree.interior[i].center, tree.interior[i].radius),
+    let Tree {
+        leaves: leaf_list,
+        mut interior,
+        root,
+        ..
+    } = tree;
+    let (root_center, root_radius) = match root.get() {
+        Ok(l) => (leaf_list[l].position, f64::from(leaf_list[l].radius)),
+        Err(i) => (interior[i].center, interior[i].radius),
     };
     // A zero-size root (one point of radius 0) still needs a positive scale.
     let root_radius = if root_radius > 0.0 { root_radius } else { 1.0 };
     // The header sphere holds the root as it will be stored (with its slack
     // when it has children), so the root's own code is the identity.
-    let root_radius = if tree.root.get().is_err() {
+    let root_radius = if root.get().is_err() {
         root_radius * (1.0 + INTERIOR_SLACK) * (1.0 + 1e-12)
     } else {
         root_radius
+    };
+    // Each interior node's sphere is replaced by its quantized one as soon
+    // as it is quantized: its children are quantized against that, and its
+    // true sphere is not needed again. So a level is a list of node
+    // indices, not of spheres.
+    let tree = LayoutTree {
+        leaves: &leaf_list,
+        nodes: interior.shared(),
     };
 
     let mut depth = 0u32;
@@ -62,8 +77,8 @@ pub fn lay_out(tree: Tree, input: LayoutInput) -> PagedFile {
     let mut next_child = 1u64;
     let mut leaf_sources = Vec::new();
     // The root forms its own group, quantized against the header sphere.
-    let root = tree.root;
-    let (root_record, root_sphere) = quantize(&tree, root, root_center, root_radius, input.layout);
+    // SAFETY: no other thread runs yet.
+    let root_record = unsafe { tree.quantize(root, root_center, root_radius, input.layout) };
     let root_bytes = root_record.pack(input.layout).to_le_bytes();
     pages.add_group(depth, &root_bytes[..node_bytes], next_child);
     next_child += root_record.children.get() as u64;
@@ -72,18 +87,14 @@ pub fn lay_out(tree: Tree, input: LayoutInput) -> PagedFile {
     // tasks of the level above produced (each exactly sized): joining them
     // into one vector would hold a level twice, and growing it would hold
     // it up to three times, at the build's memory peak.
-    let mut level: Vec<Vec<Parent>> = Vec::new();
-    // `quantize` gives every interior node its quantized sphere.
-    if let (Err(node), Some((center, radius))) = (root.get(), root_sphere) {
-        level.push(vec![Parent {
-            node: node as u32,
-            center,
-            radius,
-        }]);
-    } else if let Ok(l) = root.get() {
-        leaves += 1;
-        if input.record_leaf_sources {
-            leaf_sources.push((tree.leaves[l].source, 0));
+    let mut level: Vec<Vec<u32>> = Vec::new();
+    match root.get() {
+        Err(node) => level.push(vec![node as u32]),
+        Ok(l) => {
+            leaves += 1;
+            if input.record_leaf_sources {
+                leaf_sources.push((leaf_list[l].source, 0));
+            }
         }
     }
     while !level.is_empty() {
@@ -101,29 +112,34 @@ pub fn lay_out(tree: Tree, input: LayoutInput) -> PagedFile {
                 parents += list.len();
                 window.push(list);
             }
-            // Quantize this window's sibling groups on all threads (each
-            // reads only its parent's quantized sphere, carried in `Parent`),
-            // then place the records in order: the only serial work is
-            // copying record bytes into pages.
-            let tasks: Vec<&[Parent]> = window
+            // Quantize this window's sibling groups on all threads, then
+            // place the records in order: the only serial work is copying
+            // record bytes into pages.
+            let tasks: Vec<&[u32]> = window
                 .iter()
                 .flat_map(|list| list.chunks(LAYOUT_GRAIN))
                 .collect();
             let placed: Vec<PlacedGroups> = tasks
                 .par_iter()
-                .map(|parents| quantize_groups(&tree, parents, input.layout))
+                // SAFETY: a task reads its parents (quantized at the level
+                // above, by tasks that have finished) and reads, then
+                // writes, their children. A node has one parent and a
+                // parent is in one task, so no node is written by two
+                // tasks or read by one while another writes it.
+                .map(|parents| unsafe { tree.quantize_groups(parents, input.layout) })
                 .collect();
             for (parents, placed) in tasks.iter().zip(placed) {
                 let mut offset = 0;
-                for (parent, &(count, grandchildren)) in parents.iter().zip(&placed.groups) {
+                for (&parent, &(count, grandchildren)) in parents.iter().zip(&placed.groups) {
                     let end = offset + usize::from(count) * node_bytes;
                     pages.add_group(depth, &placed.bytes[offset..end], next_child);
                     offset = end;
                     if input.record_leaf_sources {
-                        let node = &tree.interior[parent.node as usize];
+                        // SAFETY: no task runs now.
+                        let node = unsafe { tree.nodes.get(parent as usize) };
                         for (i, child) in node.children[..usize::from(count)].iter().enumerate() {
                             if let Ok(l) = child.get() {
-                                leaf_sources.push((tree.leaves[l].source, nodes + i as u64));
+                                leaf_sources.push((leaf_list[l].source, nodes + i as u64));
                             }
                         }
                     }
@@ -139,6 +155,8 @@ pub fn lay_out(tree: Tree, input: LayoutInput) -> PagedFile {
         level = next;
     }
     drop(tree);
+    drop(leaf_list);
+    drop(interior);
     let (mut pages_dir, page_bytes) = pages.finish();
     // Pages follow the header; offsets are known once the page count is.
     place_pages(&mut pages_dir);
@@ -174,16 +192,6 @@ const LAYOUT_CHUNK: usize = 1 << 15;
 /// Parents per parallel task within a window.
 const LAYOUT_GRAIN: usize = 1 << 10;
 
-/// An interior node of the level being placed, with its quantized sphere:
-/// the frame its children are quantized in. Carrying it here, rather than
-/// writing it back into the tree, leaves the tree read-only.
-#[derive(Debug, Clone, Copy)]
-struct Parent {
-    node: u32,
-    center: DVec3,
-    radius: f64,
-}
-
 /// One task's output: the packed records of its parents' children, in
 /// order; per parent, the number of children and of grandchildren (the
 /// group's size and how far it moves the next child index); how many of
@@ -193,113 +201,139 @@ struct PlacedGroups {
     bytes: Vec<u8>,
     groups: Vec<(u8, u8)>,
     leaves: u64,
-    next: Vec<Parent>,
+    next: Vec<u32>,
 }
 
-fn quantize_groups(tree: &Tree, parents: &[Parent], layout: NodeLayout) -> PlacedGroups {
-    let node_bytes = layout.bytes() as usize;
-    // Exact sizes, from the child references alone: these lists make up
-    // the next level, which lives through the memory peak. (Room for four
-    // children each, shrunk afterwards, raised horse's peak by about 5 %:
-    // the heap's small blocks are resident, used or not.)
-    let (mut children, mut interior) = (0, 0);
-    for parent in parents {
-        let node = &tree.interior[parent.node as usize];
-        let refs = &node.children[..usize::from(node.child_count)];
-        children += refs.len();
-        interior += refs.iter().filter(|c| c.get().is_err()).count();
-    }
-    let mut placed = PlacedGroups {
-        bytes: Vec::with_capacity(children * node_bytes),
-        groups: Vec::with_capacity(parents.len()),
-        leaves: 0,
-        next: Vec::with_capacity(interior),
-    };
-    for parent in parents {
-        let node = &tree.interior[parent.node as usize];
-        let mut grandchildren = 0;
-        for &child in &node.children[..usize::from(node.child_count)] {
-            let (record, sphere) = quantize(tree, child, parent.center, parent.radius, layout);
-            placed
-                .bytes
-                .extend_from_slice(&record.pack(layout).to_le_bytes()[..node_bytes]);
-            grandchildren += record.children.get() as u8;
-            match (child.get(), sphere) {
-                (Err(i), Some((center, radius))) => placed.next.push(Parent {
-                    node: i as u32,
-                    center,
-                    radius,
-                }),
-                _ => placed.leaves += 1,
+/// The tree as the layout sees it: leaves to read, and interior nodes whose
+/// spheres become their quantized ones as the levels are placed.
+struct LayoutTree<'a> {
+    leaves: &'a [Leaf],
+    nodes: SharedNodes<'a>,
+}
+
+impl LayoutTree<'_> {
+    /// Quantizes the children of `parents`, whose spheres are already the
+    /// quantized ones.
+    ///
+    /// # Safety
+    ///
+    /// While this runs, no other thread may write `parents`, nor touch
+    /// their children.
+    unsafe fn quantize_groups(&self, parents: &[u32], layout: NodeLayout) -> PlacedGroups {
+        let node_bytes = layout.bytes() as usize;
+        // SAFETY (here and below): the parents are only read, and their
+        // children are this task's alone (the caller's contract).
+        let parent_nodes = || {
+            parents
+                .iter()
+                .map(|&p| unsafe { self.nodes.get(p as usize) })
+        };
+        // Exact sizes, from the child references alone: these lists make up
+        // the next level, which lives through the memory peak. (Room for four
+        // children each, shrunk afterwards, raised horse's peak by about 5 %:
+        // the heap's small blocks are resident, used or not.)
+        let (mut children, mut interior) = (0, 0);
+        for node in parent_nodes() {
+            let refs = &node.children[..usize::from(node.child_count)];
+            children += refs.len();
+            interior += refs.iter().filter(|c| c.get().is_err()).count();
+        }
+        let mut placed = PlacedGroups {
+            bytes: Vec::with_capacity(children * node_bytes),
+            groups: Vec::with_capacity(parents.len()),
+            leaves: 0,
+            next: Vec::with_capacity(interior),
+        };
+        for parent in parent_nodes() {
+            let mut grandchildren = 0;
+            for &child in &parent.children[..usize::from(parent.child_count)] {
+                let record = unsafe { self.quantize(child, parent.center, parent.radius, layout) };
+                placed
+                    .bytes
+                    .extend_from_slice(&record.pack(layout).to_le_bytes()[..node_bytes]);
+                grandchildren += record.children.get() as u8;
+                match child.get() {
+                    Err(i) => placed.next.push(i as u32),
+                    Ok(_) => placed.leaves += 1,
+                }
             }
+            placed.groups.push((parent.child_count, grandchildren));
         }
-        placed.groups.push((node.child_count, grandchildren));
+        placed
     }
-    placed
-}
 
-/// Quantizes one node against its parent's quantized sphere. For an
-/// interior node also returns its quantized sphere, the frame its own
-/// children are quantized in.
-fn quantize(
-    tree: &Tree,
-    node: NodeRef,
-    parent_center: DVec3,
-    parent_radius: f64,
-    layout: NodeLayout,
-) -> (NodeRecord, Option<(DVec3, f64)>) {
-    let (center, radius, normal, cone, color, children) = match node.get() {
-        Ok(l) => {
-            let leaf = tree.leaves[l];
-            (
-                leaf.position,
-                f64::from(leaf.radius),
-                unpack_normal(leaf.normal),
-                cone_from_u8(leaf.cone),
-                leaf.color,
-                0,
-            )
-        }
-        Err(i) => {
-            let n = tree.interior[i];
-            (
-                n.center,
-                n.radius,
-                n.normal,
-                f64::from(n.cone),
-                n.color,
-                usize::from(n.child_count),
-            )
-        }
-    };
-    // An interior node is stored a little larger than its children need, so
-    // that children touching its true boundary still quantize to spheres
-    // inside it (see INTERIOR_SLACK).
-    let stored_radius = if children > 0 {
-        radius * (1.0 + INTERIOR_SLACK)
-    } else {
-        radius
-    };
-    let sphere = sphere_codec::encode_sphere(parent_center, parent_radius, center, stored_radius);
-    let quantized =
-        (children > 0).then(|| sphere_codec::decode_sphere(parent_center, parent_radius, sphere));
-    let (normal_code, cone_code) = if layout.normals {
-        encode_orientation(normal, cone)
-    } else {
-        (0, 3)
-    };
-    let record = NodeRecord {
-        sphere,
-        children: ChildCount::new(children).unwrap_or(ChildCount::LEAF),
-        normal: normal_code,
-        cone: cone_code,
-        color: if layout.color {
-            sphere_codec::encode_color(color)
+    /// Quantizes one node against its parent's quantized sphere; an
+    /// interior node's sphere is then replaced by its quantized one, the
+    /// frame its own children are quantized in.
+    ///
+    /// # Safety
+    ///
+    /// While this runs, no other thread may touch `node`.
+    unsafe fn quantize(
+        &self,
+        node: NodeRef,
+        parent_center: DVec3,
+        parent_radius: f64,
+        layout: NodeLayout,
+    ) -> NodeRecord {
+        let (center, radius, normal, cone, color, children) = match node.get() {
+            Ok(l) => {
+                let leaf = self.leaves[l];
+                (
+                    leaf.position,
+                    f64::from(leaf.radius),
+                    unpack_normal(leaf.normal),
+                    cone_from_u8(leaf.cone),
+                    leaf.color,
+                    0,
+                )
+            }
+            Err(i) => {
+                // SAFETY: the caller rules out other threads on this node.
+                let n = unsafe { self.nodes.get(i) };
+                (
+                    n.center,
+                    n.radius,
+                    n.normal,
+                    f64::from(n.cone),
+                    n.color,
+                    usize::from(n.child_count),
+                )
+            }
+        };
+        // An interior node is stored a little larger than its children need, so
+        // that children touching its true boundary still quantize to spheres
+        // inside it (see INTERIOR_SLACK).
+        let stored_radius = if children > 0 {
+            radius * (1.0 + INTERIOR_SLACK)
         } else {
-            0
-        },
-    };
-    (record, quantized)
+            radius
+        };
+        let sphere =
+            sphere_codec::encode_sphere(parent_center, parent_radius, center, stored_radius);
+        if let Err(i) = node.get() {
+            let (center, radius) =
+                sphere_codec::decode_sphere(parent_center, parent_radius, sphere);
+            // SAFETY: as above.
+            unsafe { self.nodes.set_sphere(i, center, radius) };
+        }
+        let (normal_code, cone_code) = if layout.normals {
+            encode_orientation(normal, cone)
+        } else {
+            (0, 3)
+        };
+        NodeRecord {
+            sphere,
+            children: ChildCount::new(children).unwrap_or(ChildCount::LEAF),
+            normal: normal_code,
+            cone: cone_code,
+            color: if layout.color {
+                sphere_codec::encode_color(color)
+            } else {
+                0
+            },
+        }
+    }
 }
 
 /// How much larger than its true sphere an interior node is stored.

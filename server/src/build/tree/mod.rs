@@ -21,7 +21,7 @@ use glam::{DVec3, Vec3};
 mod nodes;
 mod parallel;
 
-pub use nodes::InteriorNodes;
+pub use nodes::{InteriorNodes, SharedNodes};
 
 use super::leaves::{Leaf, acos_upper, cone_from_u8, cone_to_u8, pack_normal, unpack_normal};
 

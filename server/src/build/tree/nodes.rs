@@ -5,6 +5,14 @@
 //! build's memory peak, so they stay apart, and an index finds its list
 //! through a table with one entry per [`BLOCK`] indices: one load and,
 //! nearly always, one comparison.
+//!
+//! [`SharedNodes`] lets the layout's tasks replace nodes' spheres by their
+//! quantized ones in place, all at once, so no list of quantized spheres
+//! has to be held beside the nodes.
+
+use std::marker::PhantomData;
+
+use glam::DVec3;
 
 use super::Interior;
 
@@ -48,15 +56,105 @@ impl InteriorNodes {
     }
 }
 
+/// The part holding index `i` and the index within it; `len_of` gives a
+/// part's length. Panics (through a bounds check) if `i` is out of range.
+fn locate(
+    block_part: &[u32],
+    starts: &[usize],
+    len_of: impl Fn(usize) -> usize,
+    i: usize,
+) -> (usize, usize) {
+    // A later part when the block holds the ends of several.
+    let mut part = block_part[i >> BLOCK_SHIFT] as usize;
+    while i >= starts[part] + len_of(part) {
+        part += 1;
+    }
+    (part, i - starts[part])
+}
+
 impl std::ops::Index<usize> for InteriorNodes {
     type Output = Interior;
     fn index(&self, i: usize) -> &Interior {
-        // A later part when the block holds the ends of several.
-        let mut part = self.block_part[i >> BLOCK_SHIFT] as usize;
-        while i >= self.starts[part] + self.parts[part].len() {
-            part += 1;
+        let (part, offset) = locate(&self.block_part, &self.starts, |p| self.parts[p].len(), i);
+        &self.parts[part][offset]
+    }
+}
+
+impl InteriorNodes {
+    /// Access for tasks that read some nodes while replacing the spheres of
+    /// others; see [`SharedNodes`].
+    pub fn shared(&mut self) -> SharedNodes<'_> {
+        SharedNodes {
+            parts: self
+                .parts
+                .iter_mut()
+                .map(|p| (p.as_mut_ptr(), p.len()))
+                .collect(),
+            starts: &self.starts,
+            block_part: &self.block_part,
+            len: self.len,
+            _nodes: PhantomData,
         }
-        &self.parts[part][i - self.starts[part]]
+    }
+}
+
+/// The nodes of an [`InteriorNodes`], readable and writable from several
+/// threads at once, for the layout: the tasks of one level each read their
+/// parents and then, for each child, read its true sphere and replace it by
+/// its quantized one. Every node has one parent, which is in one task, so
+/// no node is written by two tasks or read by one task while another
+/// writes it; the methods are `unsafe` because that rule is the caller's
+/// to keep.
+#[derive(Debug)]
+pub struct SharedNodes<'a> {
+    /// Each part's first node and length.
+    parts: Vec<(*mut Interior, usize)>,
+    starts: &'a [usize],
+    block_part: &'a [u32],
+    len: usize,
+    /// Holds the nodes borrowed mutably, so nothing else reads them meanwhile.
+    _nodes: PhantomData<&'a mut InteriorNodes>,
+}
+
+// SAFETY: the pointers are into vectors borrowed mutably for 'a, so only
+// this handle reaches them; every access through it is an `unsafe` method
+// whose contract rules out concurrent access to the same node.
+unsafe impl Send for SharedNodes<'_> {}
+unsafe impl Sync for SharedNodes<'_> {}
+
+impl SharedNodes<'_> {
+    /// Node `i`'s slot; panics if `i` is out of range.
+    fn slot(&self, i: usize) -> *mut Interior {
+        assert!(i < self.len, "interior node {i} of {}", self.len);
+        let (part, offset) = locate(self.block_part, self.starts, |p| self.parts[p].1, i);
+        // SAFETY: `locate` put `offset` below the part's length.
+        unsafe { self.parts[part].0.add(offset) }
+    }
+
+    /// A copy of node `i`.
+    ///
+    /// # Safety
+    ///
+    /// No other thread may be writing node `i` during the call.
+    pub unsafe fn get(&self, i: usize) -> Interior {
+        // SAFETY: the slot is in bounds, and the caller rules out a
+        // concurrent write.
+        unsafe { self.slot(i).read() }
+    }
+
+    /// Replaces node `i`'s sphere.
+    ///
+    /// # Safety
+    ///
+    /// No other thread may be reading or writing node `i` during the call.
+    pub unsafe fn set_sphere(&self, i: usize, center: DVec3, radius: f64) {
+        let node = self.slot(i);
+        // SAFETY: the slot is in bounds, and the caller rules out any
+        // concurrent access; no reference to the node is made.
+        unsafe {
+            (&raw mut (*node).center).write(center);
+            (&raw mut (*node).radius).write(radius);
+        }
     }
 }
 
@@ -92,6 +190,27 @@ mod tests {
         assert_eq!(nodes.len(), next);
         for i in 0..next {
             assert_eq!(nodes[i].center.x, i as f64, "index {i}");
+        }
+        // Through the shared handle, from two threads writing distinct nodes.
+        let shared = nodes.shared();
+        std::thread::scope(|s| {
+            for half in 0..2 {
+                let shared = &shared;
+                s.spawn(move || {
+                    for i in (half..next).step_by(2) {
+                        // SAFETY: each thread touches only its own indices.
+                        unsafe {
+                            assert_eq!(shared.get(i).center.x, i as f64);
+                            shared.set_sphere(i, DVec3::splat(-(i as f64)), 2.0);
+                        }
+                    }
+                });
+            }
+        });
+        for i in 0..next {
+            assert_eq!(nodes[i].center, DVec3::splat(-(i as f64)), "index {i}");
+            assert_eq!(nodes[i].radius, 2.0);
+            assert_eq!(nodes[i].child_count, 2, "other fields kept");
         }
     }
 }
