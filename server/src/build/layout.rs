@@ -229,9 +229,10 @@ impl LayoutTree<'_> {
                 .map(|&p| unsafe { self.nodes.get(p as usize) })
         };
         // Exact sizes, from the child references alone: these lists make up
-        // the next level, which lives through the memory peak. (Room for four
-        // children each, shrunk afterwards, raised horse's peak by about 5 %:
-        // the heap's small blocks are resident, used or not.)
+        // the next level, which lives through the memory peak. (When a level
+        // held 40-byte spheres, room for four children each, shrunk
+        // afterwards, raised horse's peak by about 5 %: the heap's small
+        // blocks are resident, used or not.)
         let (mut children, mut interior) = (0, 0);
         for node in parent_nodes() {
             let refs = &node.children[..usize::from(node.child_count)];

@@ -123,30 +123,28 @@ impl List {
         let len = usize::try_from(instances).ok()?.checked_mul(stride)?;
         let records = bytes.get(..len)?;
         let count_of = self.count.decoder(self.big);
-        let all_triangles = records
-            .par_chunks_exact(stride)
-            .with_min_len(RECORDS_PER_TASK)
-            .all(|r| count_of(r) == 3.0);
-        if !all_triangles {
-            return None;
-        }
-        let out_of_range = AtomicBool::new(false);
+        // One pass: a face that is not a triangle, or an index out of range,
+        // only raises the flag (the element is then read again serially).
+        let amiss = AtomicBool::new(false);
         let before = tris.len();
         tris.par_extend(
             records
                 .par_chunks_exact(stride)
                 .with_min_len(RECORDS_PER_TASK)
                 .map(|r| {
+                    if count_of(r) != 3.0 {
+                        amiss.store(true, Ordering::Relaxed);
+                    }
                     std::array::from_fn(|k| {
                         let at = count_size + k * item_size;
                         polygon.index(index_of(&r[at..])).unwrap_or_else(|| {
-                            out_of_range.store(true, Ordering::Relaxed);
+                            amiss.store(true, Ordering::Relaxed);
                             0
                         })
                     })
                 }),
         );
-        if out_of_range.into_inner() {
+        if amiss.into_inner() {
             tris.truncate(before);
             return None;
         }
