@@ -170,7 +170,10 @@ fn local_leaves(geometry: Geometry, has_color: bool) -> (Vec<Leaf>, u64) {
             // the triangle walks read 24 bytes a corner, not a 40-byte leaf,
             // and each leaf is then written once, whole, on all threads.
             let sizes = size_from_triangles(&positions, &triangles, normals);
-            drop(triangles);
+            // Released, not kept for reuse: the leaves, allocated next, are
+            // larger and cannot reuse the block, which would sit idle at
+            // this step's memory peak.
+            crate::allocator::drop_releasing(triangles);
             let unreferenced = sizes.radius.iter().filter(|&&r| r < 0.0).count() as u64;
             let mut leaves: Vec<Leaf> = (0..positions.len())
                 .into_par_iter()
