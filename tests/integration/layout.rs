@@ -14,6 +14,32 @@ fn island() -> farfield_server::build::PagedFile {
 }
 
 #[test]
+fn the_file_is_the_same_on_any_thread_count() {
+    // The tree's tasks, the leaves' vertex ranges and the layout's task
+    // sizes all depend on the thread count; the bytes must not.
+    let on = |threads| {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .expect("thread pool")
+            .install(island)
+    };
+    let (one, three) = (on(1), on(3));
+    assert!(one.header.nodes > 50_000, "{} nodes", one.header.nodes);
+    assert!(
+        one.header == three.header,
+        "headers differ between 1 and 3 threads"
+    );
+    let differing = one
+        .pages
+        .iter()
+        .zip(&three.pages)
+        .filter(|(a, b)| a != b)
+        .count();
+    assert_eq!(differing, 0, "pages differ between 1 and 3 threads");
+}
+
+#[test]
 fn page_zero_holds_whole_first_levels_and_children_point_forward() {
     let file = island();
     let h = resident(&file);
