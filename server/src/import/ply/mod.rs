@@ -815,15 +815,37 @@ fn channel(v: f64, ty: Scalar) -> u8 {
 /// for even `j` and `(s[j+1], s[j], s[j+2])` for odd `j`, so all keep the
 /// first one's winding. Triangles with a repeated index are dropped.
 fn strip(s: &[u32], out: &mut Vec<[u32; 3]>) {
-    for (j, w) in s.windows(3).enumerate() {
-        let t = if j % 2 == 0 {
-            [w[0], w[1], w[2]]
-        } else {
-            [w[1], w[0], w[2]]
-        };
-        if t[0] != t[1] && t[1] != t[2] && t[0] != t[2] {
-            out.push(t);
+    let mut strip = Strip::default();
+    for &i in s {
+        strip.push(i, out);
+    }
+}
+
+/// A triangle strip read index by index: each index after the first two
+/// makes a triangle with the two before it, the winding alternating from
+/// the strip's start; triangles with a repeated corner (a strip's joints)
+/// are dropped. A restart is a new `Strip`.
+#[derive(Default)]
+struct Strip {
+    last: [u32; 2],
+    len: usize,
+}
+
+impl Strip {
+    fn push(&mut self, i: u32, out: &mut Vec<[u32; 3]>) {
+        let [a, b] = self.last;
+        if self.len >= 2 {
+            let t = if self.len.is_multiple_of(2) {
+                [a, b, i]
+            } else {
+                [b, a, i]
+            };
+            if t[0] != t[1] && t[1] != t[2] && t[0] != t[2] {
+                out.push(t);
+            }
         }
+        self.last = [b, i];
+        self.len += 1;
     }
 }
 
@@ -940,6 +962,65 @@ mod tests {
         let g = load_bytes(text.as_bytes()).unwrap();
         assert_eq!(tris(&g), &[[0, 1, 2], [2, 1, 3], [4, 5, 6]]);
         assert!(g.normals.is_none() && g.colors.is_none());
+    }
+
+    /// A strip list long enough to be triangulated on all threads, cut
+    /// into pieces at restarts, gives the triangles the ASCII reader gives
+    /// value by value (strips of every parity crossing the pieces' likely
+    /// cuts, degenerate corners, restarts back to back); an index out of
+    /// range near its end, the same error.
+    #[test]
+    fn a_long_binary_strip_list_agrees_with_ascii() {
+        let mut x = 99u32;
+        let mut items = Vec::new();
+        while items.len() < 200_000 {
+            x = x.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+            let len = (x >> 24) % 40;
+            items.extend((0..len).map(|k| ((x >> (k % 20)) % 8) as i32));
+            items.push(-1);
+        }
+        let file = |items: &[i32], binary: bool| {
+            let format = if binary {
+                "binary_little_endian"
+            } else {
+                "ascii"
+            };
+            let mut b = format!(
+                "ply\nformat {format} 1.0\nelement vertex 8\nproperty float x\nproperty float y\n\
+                 property float z\nelement tristrips 1\nproperty list int int vertex_indices\n\
+                 end_header\n"
+            )
+            .into_bytes();
+            for i in 0..8u8 {
+                let c = [i & 1, (i >> 1) & 1, i >> 2].map(f32::from);
+                if binary {
+                    b.extend(c.iter().flat_map(|v| v.to_le_bytes()));
+                } else {
+                    b.extend(format!("{} {} {}\n", c[0], c[1], c[2]).bytes());
+                }
+            }
+            if binary {
+                b.extend((items.len() as i32).to_le_bytes());
+                b.extend(items.iter().flat_map(|i| i.to_le_bytes()));
+            } else {
+                let text: Vec<String> = items.iter().map(i32::to_string).collect();
+                b.extend(format!("{} {}\n", items.len(), text.join(" ")).bytes());
+            }
+            b
+        };
+        let serial = tris(&load_bytes(&file(&items, false)).unwrap()).to_vec();
+        assert!(serial.len() > 50_000, "{} triangles", serial.len());
+        assert_eq!(tris(&load_bytes(&file(&items, true)).unwrap()), serial);
+
+        let at = items.len() - 5;
+        items[at] = 8;
+        for binary in [true, false] {
+            let e = err(&file(&items, binary));
+            assert!(
+                e.ends_with("element tristrips 0: vertex index 8 is out of range (8 vertices)"),
+                "{e}"
+            );
+        }
     }
 
     /// The same strips in binary take the whole-element fast path; they
