@@ -37,6 +37,10 @@ fn the_file_is_the_same_on_any_thread_count() {
         .filter(|(a, b)| a != b)
         .count();
     assert_eq!(differing, 0, "pages differ between 1 and 3 threads");
+    assert!(
+        one.leaf_sources == three.leaf_sources,
+        "vertices land in other nodes on 1 and 3 threads"
+    );
 }
 
 #[test]

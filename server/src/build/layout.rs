@@ -198,7 +198,9 @@ const LAYOUT_GRAIN: usize = 1 << 10;
 /// parents) are shared between threads too instead of running as one or
 /// two tasks; not so small that a task's bookkeeping outweighs its work.
 /// (horse.ply's and igea.ply's layouts ran 5-6 % faster than with a fixed
-/// 1024; the records and pages do not depend on it.)
+/// 1024; the records and pages do not depend on it. On many threads a large
+/// model's tasks get smaller too, and the next level is held as more,
+/// shorter lists.)
 fn layout_grain(parents: usize) -> usize {
     (parents / (4 * rayon::current_num_threads())).clamp(64, LAYOUT_GRAIN)
 }
@@ -255,7 +257,12 @@ impl LayoutTree<'_> {
                 // instead of the quantizer waiting on each in turn (the
                 // layout of gen:island ran 11-14 % faster).
                 match child.get() {
-                    Ok(l) => super::prefetch(&self.leaves[l]),
+                    Ok(l) => {
+                        // A 40-byte leaf may straddle two cache lines.
+                        let leaf: *const Leaf = &self.leaves[l];
+                        super::prefetch(leaf);
+                        super::prefetch(leaf.cast::<u8>().wrapping_add(size_of::<Leaf>() - 1));
+                    }
                     Err(i) => {
                         interior += 1;
                         self.nodes.prefetch(i);

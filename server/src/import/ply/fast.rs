@@ -165,10 +165,10 @@ impl List {
         tris: &mut Vec<[u32; 3]>,
         index_of: fn(&[u8]) -> i64,
     ) -> Option<usize> {
+        let item_size = self.item.size();
         let mut pos = 0;
         for _ in 0..instances {
             let list = self.next_list(bytes, &mut pos)?;
-            let item_size = self.item.size();
             if polygon.strips && list.len() >= 2 * STRIP_ITEMS_PER_TASK * item_size {
                 strips_on_all_threads(self, list, polygon, tris, index_of)?;
                 continue;
@@ -228,8 +228,8 @@ impl List {
 /// after restarts (-1), so every piece starts a new strip and triangulates
 /// alone, as the serial reading would (a strip's winding alternates from
 /// its own start); the pieces' triangles, in order, are the serial
-/// reading's. `None` on an index out of range (the caller reads the list
-/// again serially to say which).
+/// reading's. `None` on an index out of range or negative other than -1
+/// (the caller reads the list again serially to say which).
 fn strips_on_all_threads(
     list: &List,
     items: &[u8],

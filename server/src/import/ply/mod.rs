@@ -979,12 +979,11 @@ mod tests {
             items.extend((0..len).map(|k| ((x >> (k % 20)) % 8) as i32));
             items.push(-1);
         }
-        let file = |items: &[i32], binary: bool| {
-            let format = if binary {
-                "binary_little_endian"
-            } else {
-                "ascii"
-            };
+        // 0: ASCII, 1: little-endian (indices read inline), 2: big-endian.
+        let file = |items: &[i32], binary: u8| {
+            let format =
+                ["ascii", "binary_little_endian", "binary_big_endian"][usize::from(binary)];
+            let bytes = |v: [u8; 4], w: [u8; 4]| if binary == 2 { w } else { v };
             let mut b = format!(
                 "ply\nformat {format} 1.0\nelement vertex 8\nproperty float x\nproperty float y\n\
                  property float z\nelement tristrips 1\nproperty list int int vertex_indices\n\
@@ -993,28 +992,38 @@ mod tests {
             .into_bytes();
             for i in 0..8u8 {
                 let c = [i & 1, (i >> 1) & 1, i >> 2].map(f32::from);
-                if binary {
-                    b.extend(c.iter().flat_map(|v| v.to_le_bytes()));
+                if binary > 0 {
+                    b.extend(
+                        c.iter()
+                            .flat_map(|v| bytes(v.to_le_bytes(), v.to_be_bytes())),
+                    );
                 } else {
                     b.extend(format!("{} {} {}\n", c[0], c[1], c[2]).bytes());
                 }
             }
-            if binary {
-                b.extend((items.len() as i32).to_le_bytes());
-                b.extend(items.iter().flat_map(|i| i.to_le_bytes()));
+            if binary > 0 {
+                let n = items.len() as i32;
+                b.extend(bytes(n.to_le_bytes(), n.to_be_bytes()));
+                b.extend(
+                    items
+                        .iter()
+                        .flat_map(|i| bytes(i.to_le_bytes(), i.to_be_bytes())),
+                );
             } else {
                 let text: Vec<String> = items.iter().map(i32::to_string).collect();
                 b.extend(format!("{} {}\n", items.len(), text.join(" ")).bytes());
             }
             b
         };
-        let serial = tris(&load_bytes(&file(&items, false)).unwrap()).to_vec();
+        let serial = tris(&load_bytes(&file(&items, 0)).unwrap()).to_vec();
         assert!(serial.len() > 50_000, "{} triangles", serial.len());
-        assert_eq!(tris(&load_bytes(&file(&items, true)).unwrap()), serial);
+        for binary in [1, 2] {
+            assert_eq!(tris(&load_bytes(&file(&items, binary)).unwrap()), serial);
+        }
 
         let at = items.len() - 5;
         items[at] = 8;
-        for binary in [true, false] {
+        for binary in [0, 1, 2] {
             let e = err(&file(&items, binary));
             assert!(
                 e.ends_with("element tristrips 0: vertex index 8 is out of range (8 vertices)"),
