@@ -95,6 +95,12 @@ fn advise(_block: *mut u8, _len: usize) {}
 /// Below this, a freed buffer is left to the allocator as it is.
 #[cfg(target_os = "linux")]
 const RELEASE_MIN: usize = 64 << 10;
+/// At or above this, glibc maps a block on its own (its mmap threshold
+/// never exceeds 32 MiB on 64-bit systems) and unmaps it on free, so a
+/// release would only repeat that work (for a scene's 100 MB of triangles,
+/// tens of milliseconds).
+#[cfg(target_os = "linux")]
+const RELEASE_MAX: usize = 32 << 20;
 
 /// Drops `buffer`, first handing its whole pages back to the kernel.
 ///
@@ -103,9 +109,9 @@ const RELEASE_MIN: usize = 64 << 10;
 /// leaves, made just after the triangles they were sized from are freed),
 /// it cannot reuse it, and the idle block adds to the build's peak: 24
 /// bytes per vertex of horse.ply's 112. Released, it costs page faults
-/// only when the allocator hands that memory out again. (A block above the
-/// allocator's own mmap threshold is unmapped on free anyway; the release
-/// then only costs one system call.)
+/// only when the allocator hands that memory out again. Blocks under
+/// 64 KiB, or of 32 MiB and more (which glibc unmaps on free anyway), are
+/// simply freed.
 ///
 /// `T: Copy` has no destructor, so nothing reads the contents after they
 /// are discarded.
@@ -120,7 +126,7 @@ pub fn drop_releasing<T: Copy>(mut buffer: Vec<T>) {
 /// Discards the whole pages inside `len` bytes at `block`.
 #[cfg(target_os = "linux")]
 fn release(block: *mut u8, len: usize) {
-    if len < RELEASE_MIN {
+    if !(RELEASE_MIN..RELEASE_MAX).contains(&len) {
         return;
     }
     let Some((start, end)) = whole_pages(block, len) else {
