@@ -257,12 +257,7 @@ impl LayoutTree<'_> {
                 // instead of the quantizer waiting on each in turn (the
                 // layout of gen:island ran 11-14 % faster).
                 match child.get() {
-                    Ok(l) => {
-                        // A 40-byte leaf may straddle two cache lines.
-                        let leaf: *const Leaf = &self.leaves[l];
-                        super::prefetch(leaf);
-                        super::prefetch(leaf.cast::<u8>().wrapping_add(size_of::<Leaf>() - 1));
-                    }
+                    Ok(l) => super::prefetch(&self.leaves[l]),
                     Err(i) => {
                         interior += 1;
                         self.nodes.prefetch(i);

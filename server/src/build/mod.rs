@@ -27,20 +27,26 @@ use crate::scene::Scene;
 /// large enough that per-page headers cost under 0.01 bytes per node.
 pub const DEFAULT_PAGE_BYTES: usize = 16 * 1024;
 
-/// Asks the CPU to load the cache line holding `at` (a hint: it never
-/// faults, whatever the address). The layout visits nodes scattered over
-/// hundreds of megabytes, a level at a time; asking for a batch of them
-/// before using any overlaps their memory latencies.
+/// Asks the CPU to load the cache lines holding the `T` at `at`: its
+/// first and its last byte, as a leaf or node may straddle two lines (a
+/// hint: it never faults, whatever the address). The layout visits nodes
+/// scattered over hundreds of megabytes, a level at a time; asking for a
+/// batch of them before using any overlaps their memory latencies.
 #[inline(always)]
 pub(crate) fn prefetch<T>(at: *const T) {
+    let last = at
+        .cast::<u8>()
+        .wrapping_add(size_of::<T>().saturating_sub(1));
     #[cfg(target_arch = "x86_64")]
     // SAFETY: a prefetch is a hint with no architectural effect; it does not
     // dereference the pointer in the language's sense.
     unsafe {
-        std::arch::x86_64::_mm_prefetch(at.cast::<i8>(), std::arch::x86_64::_MM_HINT_T0);
+        use std::arch::x86_64::{_MM_HINT_T0, _mm_prefetch};
+        _mm_prefetch(at.cast::<i8>(), _MM_HINT_T0);
+        _mm_prefetch(last.cast::<i8>(), _MM_HINT_T0);
     }
     #[cfg(not(target_arch = "x86_64"))]
-    let _ = at;
+    let _ = (at, last);
 }
 
 /// Knobs of a build.

@@ -134,9 +134,7 @@ impl SharedNodes<'_> {
     /// Asks the CPU to start loading node `i` into the cache; a hint only,
     /// it reads nothing the caller can see.
     pub fn prefetch(&self, i: usize) {
-        let node = self.slot(i);
-        crate::build::prefetch(node);
-        crate::build::prefetch(node.cast::<u8>().wrapping_add(size_of::<Interior>() - 1));
+        crate::build::prefetch(self.slot(i));
     }
 
     /// A copy of node `i`.

@@ -197,11 +197,11 @@ impl List {
     ) -> Option<usize> {
         let mut items = Vec::new();
         let mut pos = 0;
-        let item_of = self.item.decoder(self.big);
+        let (item_of, item_size) = (self.item.decoder(self.big), self.item.size());
         for _ in 0..instances {
             items.clear();
             let list = self.next_list(bytes, &mut pos)?;
-            items.extend(list.chunks_exact(self.item.size()).map(item_of));
+            items.extend(list.chunks_exact(item_size).map(item_of));
             polygon.add(&items, tris).ok()?;
         }
         Some(pos)
