@@ -174,7 +174,7 @@ fn local_leaves(geometry: Geometry, has_color: bool) -> (Vec<Leaf>, u64) {
             // larger and cannot reuse the block, which would sit idle at
             // this step's memory peak.
             crate::allocator::drop_releasing(triangles);
-            let unreferenced = sizes.radius.iter().filter(|&&r| r < 0.0).count() as u64;
+            let unreferenced = sizes.radius_squared.iter().filter(|&&r| r < 0.0).count() as u64;
             let mut leaves: Vec<Leaf> = (0..positions.len())
                 .into_par_iter()
                 .with_min_len(LEAVES_PER_TASK)
@@ -214,8 +214,9 @@ fn is_unreferenced(leaf: &Leaf) -> bool {
 
 /// What the triangles around each vertex say about its leaf.
 struct VertexSizes {
-    /// Largest bounding radius of the incident triangles; -1 for none.
-    radius: Vec<f32>,
+    /// Square of the largest bounding radius of the incident triangles;
+    /// -1 for none.
+    radius_squared: Vec<f64>,
     /// Unit vertex normal (the input's, or the area-weighted face normal);
     /// zero where there is none.
     normal: Vec<Vec3>,
@@ -226,7 +227,15 @@ struct VertexSizes {
 impl VertexSizes {
     /// `leaf` (vertex `i`) with its radius, normal and cone.
     fn apply(&self, i: usize, leaf: Leaf) -> Leaf {
-        let (r, nv, c) = (self.radius[i], self.normal[i], self.min_cos[i]);
+        let (r2, nv, c) = (self.radius_squared[i], self.normal[i], self.min_cos[i]);
+        // The square root and the round-up are monotonic, so taking them
+        // once, of the largest square, gives the largest of the triangles'
+        // rounded-up radii: the same f32, for a sixth of the roots.
+        let r = if r2 >= 0.0 {
+            round_up_f32(r2.sqrt())
+        } else {
+            -1.0
+        };
         if r >= 0.0 && nv != Vec3::ZERO {
             Leaf {
                 radius: r,
@@ -260,26 +269,26 @@ fn size_from_triangles(
     triangles: &[[u32; 3]],
     normals: Option<Vec<Vec3>>,
 ) -> VertexSizes {
-    // Working memory is a radius, a normal and a cosine per vertex.
+    // Working memory is a squared radius, a normal and a cosine per vertex.
     let n = positions.len();
     let have_normals = normals.is_some();
     let mut sizes = VertexSizes {
         normal: normals.unwrap_or_else(|| vec![Vec3::ZERO; n]),
-        radius: vec![-1.0f32; n],
+        radius_squared: vec![-1.0f64; n],
         min_cos: vec![1.0f32; n],
     };
     let range_len = n.div_ceil(rayon::current_num_threads().max(1)).max(1 << 14);
     sizes
-        .radius
+        .radius_squared
         .par_chunks_mut(range_len)
         .zip(sizes.normal.par_chunks_mut(range_len))
         .zip(sizes.min_cos.par_chunks_mut(range_len))
         .enumerate()
-        .for_each(|(part, ((radius, normal), min_cos))| {
+        .for_each(|(part, ((radius_squared, normal), min_cos))| {
             let first = part * range_len;
             let mut range = VertexRange {
                 first,
-                radius,
+                radius_squared,
                 normal,
                 min_cos,
             };
@@ -289,11 +298,12 @@ fn size_from_triangles(
 }
 
 /// One thread's share of [`size_from_triangles`]: the working values of the
-/// vertices `first..first + radius.len()`.
+/// vertices `first..first + radius_squared.len()`.
 struct VertexRange<'a> {
     first: usize,
-    /// Largest bounding radius of the incident triangles; -1 for none yet.
-    radius: &'a mut [f32],
+    /// Square of the largest bounding radius of the incident triangles; -1
+    /// for none yet.
+    radius_squared: &'a mut [f64],
     /// Area-weighted sum of the face normals, then its direction.
     normal: &'a mut [Vec3],
     /// Smallest cosine between the vertex normal and an incident face's.
@@ -305,31 +315,33 @@ impl VertexRange<'_> {
     fn owned(&self, tri: &[u32; 3]) -> [Option<usize>; 3] {
         tri.map(|i| {
             let local = (i as usize).wrapping_sub(self.first);
-            (local < self.radius.len()).then_some(local)
+            (local < self.radius_squared.len()).then_some(local)
         })
     }
 
     fn size(&mut self, positions: &[DVec3], triangles: &[[u32; 3]], have_normals: bool) {
+        if have_normals {
+            // The vertex normals are known before any triangle is seen, so
+            // one walk gives both the radius and the cone: half the
+            // triangle work of the walks below.
+            self.normalize_normals();
+            self.size_and_cone(positions, triangles);
+            return;
+        }
         for tri in triangles {
             let owned = self.owned(tri);
             if owned == [None; 3] {
                 continue;
             }
             let [a, b, c] = tri.map(|i| positions[i as usize]);
-            let (r, face) = bounding_radius_and_face(a, b, c);
-            // Rounded up to f32 per triangle: the max of round-ups never shrinks.
-            let r = round_up_f32(r);
+            let (r2, face) = squared_bounding_radius_and_face(a, b, c);
             let face = face.as_vec3(); // length = 2 * area
             for v in owned.into_iter().flatten() {
-                self.radius[v] = self.radius[v].max(r);
-                if !have_normals {
-                    self.normal[v] += face;
-                }
+                self.radius_squared[v] = self.radius_squared[v].max(r2);
+                self.normal[v] += face;
             }
         }
-        for nv in self.normal.iter_mut() {
-            *nv = nv.try_normalize().unwrap_or(Vec3::ZERO);
-        }
+        self.normalize_normals();
         // Cone: the widest angle between a vertex normal and its faces'
         // normals, tracked as the smallest cosine (one acos per vertex, not
         // per corner).
@@ -342,10 +354,43 @@ impl VertexRange<'_> {
             let Some(face) = (b - a).cross(c - a).try_normalize() else {
                 continue;
             };
-            let face = face.as_vec3();
-            for v in owned.into_iter().flatten() {
-                self.min_cos[v] = self.min_cos[v].min(self.normal[v].dot(face));
+            self.widen_cones(owned, face.as_vec3());
+        }
+    }
+
+    /// [`Self::size`] when the vertex normals are the input's (already
+    /// normalized): radius and cone in one walk over the triangles.
+    fn size_and_cone(&mut self, positions: &[DVec3], triangles: &[[u32; 3]]) {
+        for tri in triangles {
+            let owned = self.owned(tri);
+            if owned == [None; 3] {
+                continue;
             }
+            let [a, b, c] = tri.map(|i| positions[i as usize]);
+            let (r2, face) = squared_bounding_radius_and_face(a, b, c);
+            for v in owned.into_iter().flatten() {
+                self.radius_squared[v] = self.radius_squared[v].max(r2);
+            }
+            // The same face vector the separate cone walk computes, so the
+            // cones are bit for bit those of that walk.
+            if let Some(face) = face.try_normalize() {
+                self.widen_cones(owned, face.as_vec3());
+            }
+        }
+    }
+
+    fn normalize_normals(&mut self) {
+        for nv in self.normal.iter_mut() {
+            *nv = nv.try_normalize().unwrap_or(Vec3::ZERO);
+        }
+    }
+
+    /// Widens the owned corners' cones to cover a face: lowers their
+    /// smallest normal-to-face cosine.
+    #[inline]
+    fn widen_cones(&mut self, owned: [Option<usize>; 3], unit_face: Vec3) {
+        for v in owned.into_iter().flatten() {
+            self.min_cos[v] = self.min_cos[v].min(self.normal[v].dot(unit_face));
         }
     }
 }
@@ -353,14 +398,15 @@ impl VertexRange<'_> {
 /// Radius of the smallest sphere holding a triangle: half the longest edge
 /// for a right or obtuse triangle, else the circumradius.
 pub fn triangle_bounding_radius(a: DVec3, b: DVec3, c: DVec3) -> f64 {
-    bounding_radius_and_face(a, b, c).0
+    squared_bounding_radius_and_face(a, b, c).0.sqrt()
 }
 
-/// [`triangle_bounding_radius`] and the face vector `(b - a) x (c - a)`
-/// (its length is twice the area), sharing the cross product. One square
-/// root: the circumradius R = |ab| |bc| |ca| / (4 area) is taken as
-/// sqrt(|ab|² |bc|² |ca|² / (4 |face|²)).
-fn bounding_radius_and_face(a: DVec3, b: DVec3, c: DVec3) -> (f64, DVec3) {
+/// The square of [`triangle_bounding_radius`] and the face vector
+/// `(b - a) x (c - a)` (its length is twice the area), sharing the cross
+/// product. No square root: the circumradius R = |ab| |bc| |ca| / (4 area)
+/// is taken as |ab|² |bc|² |ca|² / (4 |face|²), and callers take the root
+/// once per vertex, of the largest square.
+fn squared_bounding_radius_and_face(a: DVec3, b: DVec3, c: DVec3) -> (f64, DVec3) {
     let face = (b - a).cross(c - a);
     let (ab, bc, ca) = (
         a.distance_squared(b),
@@ -377,7 +423,7 @@ fn bounding_radius_and_face(a: DVec3, b: DVec3, c: DVec3) -> (f64, DVec3) {
     } else {
         (ab * bc * ca / (4.0 * twice_area_squared)).max(half_longest_squared)
     };
-    (squared.sqrt(), face)
+    (squared, face)
 }
 
 /// An upper bound on `acos(x)` within 2e-4 radians, without a libm call
