@@ -3,7 +3,9 @@
 //!
 //! A compact hand-written reader: the header becomes a list of elements with
 //! typed properties, then the body is read one value at a time (a binary
-//! body is read into memory whole and decoded in place; ASCII values are
+//! body is decoded in place from a memory map of the file ([`mapped`]), or
+//! where the file cannot be mapped, read into memory an element at a time;
+//! ASCII values are
 //! whitespace-separated tokens streamed through a [`BufReader`], so line
 //! breaks do not matter). This reads the
 //! test meshes in a few milliseconds and lets every error name the element
@@ -33,21 +35,41 @@ use super::common::{fan, unit_color, unit_normals};
 use crate::scene::{Geometry, Primitives, Rgb8, Scene};
 
 mod fast;
+mod mapped;
+
+use mapped::Mapped;
 
 /// Longest header accepted before `end_header`.
 const MAX_HEADER: u64 = 1 << 20;
 
+/// The body length assumed for a file of unknown length (a pipe): a bound
+/// on what is allocated ahead of reading, so a header's counts cannot make
+/// it allocate more; the body itself is read to its end.
+const UNKNOWN_BODY: u64 = 1 << 26;
+
 /// Loads a PLY file as one geometry: triangles when it has `face` or
 /// `tristrips`, points otherwise.
 pub fn load(path: &Path) -> Result<Scene, ImportError> {
+    load_from(path, true)
+}
+
+/// [`load`]; a binary body is memory-mapped when `map` is set and the file
+/// can be, else read.
+fn load_from(path: &Path, map: bool) -> Result<Scene, ImportError> {
     let file = File::open(path).map_err(|e| ImportError::io(path, e))?;
-    let file_len = file.metadata().map(|m| m.len()).unwrap_or(0);
+    // A pipe has no length: its body is read to its end, and sizes taken
+    // from the header are trusted only up to a bound (see `UNKNOWN_BODY`).
+    let file_len = file
+        .metadata()
+        .ok()
+        .filter(|m| m.is_file())
+        .map(|m| m.len());
     // The header needs little; a binary body is read element by element
     // into its own buffer, so a larger buffer here would only add to the
     // import's memory peak.
     let mut reader = BufReader::with_capacity(64 << 10, file);
     let header = read_header(path, &mut reader)?;
-    let body_len = file_len.saturating_sub(header.bytes);
+    let body_len = file_len.map_or(UNKNOWN_BODY, |len| len.saturating_sub(header.bytes));
     let geometry = match header.format {
         Format::Ascii => {
             let mut src = Ascii {
@@ -59,12 +81,24 @@ pub fn load(path: &Path) -> Result<Scene, ImportError> {
             read_body(path, &header, body_len, &mut src)
         }
         Format::BinaryLe | Format::BinaryBe => {
+            let big = header.format == Format::BinaryBe;
+            if let Some(mut src) = map
+                .then(|| Mapped::new(reader.get_ref(), header.bytes, big))
+                .flatten()
+            {
+                return Ok(Scene::single(read_body(path, &header, body_len, &mut src)?));
+            }
             let mut src = Binary {
                 reader,
-                unread: body_len,
+                unread: if file_len.is_some() {
+                    body_len
+                } else {
+                    u64::MAX
+                },
+                room_bound: body_len,
                 body: Vec::new(),
                 pos: 0,
-                big: header.format == Format::BinaryBe,
+                big,
             };
             read_body(path, &header, body_len, &mut src)
         }
@@ -339,6 +373,9 @@ struct Binary<R> {
     /// Body bytes not yet read from `reader` (at most; the file may be
     /// shorter than its header says, which the decoders report).
     unread: u64,
+    /// Most bytes allocated ahead of a read: the body's length, or
+    /// [`UNKNOWN_BODY`] for a pipe, where `unread` is unbounded.
+    room_bound: u64,
     body: Vec<u8>,
     pos: usize,
     big: bool,
@@ -355,7 +392,7 @@ impl<R: Read> Binary<R> {
         if wanted == 0 {
             return Ok(());
         }
-        let capacity = usize::try_from(wanted).unwrap_or(usize::MAX);
+        let capacity = usize::try_from(wanted.min(self.room_bound)).unwrap_or(usize::MAX);
         let mut body = Vec::with_capacity(kept.saturating_add(capacity));
         body.extend_from_slice(&self.body[self.pos..]);
         self.body = Vec::new();
@@ -367,25 +404,32 @@ impl<R: Read> Binary<R> {
     }
 }
 
+/// Decodes the value of type `ty` at `bytes[*pos..]` and moves past it.
+fn take_value(bytes: &[u8], pos: &mut usize, ty: Scalar, big: bool) -> Result<f64, BodyError> {
+    let n = ty.size();
+    let value = bytes.get(*pos..*pos + n).ok_or(BodyError::Truncated)?;
+    *pos += n;
+    Ok(ty.decoder(big)(value))
+}
+
+/// Moves `*pos` past `n` values of type `ty` in `bytes`.
+fn skip_values(bytes: &[u8], pos: &mut usize, ty: Scalar, n: u64) -> Result<(), BodyError> {
+    let want = n.saturating_mul(ty.size() as u64);
+    let left = bytes.len().saturating_sub(*pos) as u64;
+    if want > left {
+        return Err(BodyError::Truncated);
+    }
+    *pos += want as usize;
+    Ok(())
+}
+
 impl<R: Read> Values for Binary<R> {
     fn value(&mut self, ty: Scalar) -> Result<f64, BodyError> {
-        let n = ty.size();
-        let bytes = self
-            .body
-            .get(self.pos..self.pos + n)
-            .ok_or(BodyError::Truncated)?;
-        self.pos += n;
-        Ok(ty.decoder(self.big)(bytes))
+        take_value(&self.body, &mut self.pos, ty, self.big)
     }
 
     fn skip(&mut self, ty: Scalar, n: u64) -> Result<(), BodyError> {
-        let want = n.saturating_mul(ty.size() as u64);
-        let left = (self.body.len() - self.pos) as u64;
-        if want > left {
-            return Err(BodyError::Truncated);
-        }
-        self.pos += want as usize;
-        Ok(())
+        skip_values(&self.body, &mut self.pos, ty, n)
     }
 
     fn binary_rest(&self) -> Option<(&[u8], bool)> {
@@ -862,11 +906,20 @@ mod tests {
         path
     }
 
+    /// Loads `bytes` as a file, checking that a mapped and a read binary
+    /// body give the same geometry or the same error: every test of the
+    /// importer covers both.
     fn load_bytes(bytes: &[u8]) -> Result<Geometry, ImportError> {
         let path = temp("t.ply", bytes);
-        let result = load(&path);
+        let mapped = load_from(&path, true);
+        let read = load_from(&path, false);
         std::fs::remove_file(&path).unwrap();
-        result.map(|s| s.geometries.into_iter().next().unwrap())
+        match (&mapped, &read) {
+            (Ok(m), Ok(r)) => assert_eq!(m, r, "mapped and read bodies differ"),
+            (Err(m), Err(r)) => assert_eq!(m.to_string(), r.to_string()),
+            _ => panic!("mapped: {mapped:?}, read: {read:?}"),
+        }
+        mapped.map(|s| s.geometries.into_iter().next().unwrap())
     }
 
     fn err(bytes: &[u8]) -> String {
@@ -1157,6 +1210,31 @@ mod tests {
         // Huge header counts must neither allocate nor hang.
         let e = err(b"ply\nformat binary_little_endian 1.0\nelement vertex 18446744073709551615\nproperty float x\nproperty float y\nproperty float z\nelement empty 18446744073709551615\nend_header\n");
         assert!(e.contains("element vertex 0: file ends early"), "{e}");
+    }
+
+    #[test]
+    fn a_pipe_is_read_instead_of_mapped() {
+        // A named pipe cannot be mapped: the body must be read instead.
+        let path = std::env::temp_dir().join(format!("ff-ply-{}-pipe.ply", std::process::id()));
+        let c_path = std::ffi::CString::new(path.to_str().unwrap()).unwrap();
+        // SAFETY: a valid NUL-terminated path.
+        assert_eq!(unsafe { libc::mkfifo(c_path.as_ptr(), 0o600) }, 0);
+        let bytes = binary_quad(false);
+        let writer = {
+            let (path, bytes) = (path.clone(), bytes.clone());
+            std::thread::spawn(move || std::fs::write(path, bytes))
+        };
+        let piped = load(&path);
+        writer.join().unwrap().unwrap();
+        std::fs::remove_file(&path).unwrap();
+        let piped = piped.unwrap().geometries.remove(0);
+        let from_file = load_bytes(&bytes).unwrap();
+        assert_eq!(piped.positions, from_file.positions);
+        assert_eq!(piped.primitives, from_file.primitives);
+        assert_eq!(
+            (piped.normals, piped.colors),
+            (from_file.normals, from_file.colors)
+        );
     }
 
     #[test]
