@@ -877,7 +877,16 @@ struct Strip {
 
 impl Strip {
     fn push(&mut self, i: u32, out: &mut Vec<[u32; 3]>) {
+        if let Some(t) = self.next(i) {
+            out.push(t);
+        }
+    }
+
+    /// Adds index `i`; returns the triangle it completes, if any.
+    #[inline]
+    fn next(&mut self, i: u32) -> Option<[u32; 3]> {
         let [a, b] = self.last;
+        let mut made = None;
         if self.len >= 2 {
             let t = if self.len.is_multiple_of(2) {
                 [a, b, i]
@@ -885,11 +894,12 @@ impl Strip {
                 [b, a, i]
             };
             if t[0] != t[1] && t[1] != t[2] && t[0] != t[2] {
-                out.push(t);
+                made = Some(t);
             }
         }
         self.last = [b, i];
         self.len += 1;
+        made
     }
 }
 
