@@ -174,7 +174,7 @@ fn local_leaves(geometry: Geometry, has_color: bool) -> (Vec<Leaf>, u64) {
             // larger and cannot reuse the block, which would sit idle at
             // this step's memory peak.
             crate::allocator::drop_releasing(triangles);
-            let unreferenced = sizes.radius_squared.iter().filter(|&&r| r < 0.0).count() as u64;
+            let unreferenced = sizes.radius.iter().filter(|&&r| r < 0.0).count() as u64;
             let mut leaves: Vec<Leaf> = (0..positions.len())
                 .into_par_iter()
                 .with_min_len(LEAVES_PER_TASK)
@@ -214,9 +214,9 @@ fn is_unreferenced(leaf: &Leaf) -> bool {
 
 /// What the triangles around each vertex say about its leaf.
 struct VertexSizes {
-    /// Square of the largest bounding radius of the incident triangles;
-    /// -1 for none.
-    radius_squared: Vec<f64>,
+    /// Largest bounding radius of the incident triangles, rounded up to
+    /// f32; -1 for none.
+    radius: Vec<f32>,
     /// Unit vertex normal (the input's, or the area-weighted face normal);
     /// zero where there is none.
     normal: Vec<Vec3>,
@@ -227,15 +227,7 @@ struct VertexSizes {
 impl VertexSizes {
     /// `leaf` (vertex `i`) with its radius, normal and cone.
     fn apply(&self, i: usize, leaf: Leaf) -> Leaf {
-        let (r2, nv, c) = (self.radius_squared[i], self.normal[i], self.min_cos[i]);
-        // The square root and the round-up are monotonic, so taking them
-        // once, of the largest square, gives the largest of the triangles'
-        // rounded-up radii: the same f32, for a sixth of the roots.
-        let r = if r2 >= 0.0 {
-            round_up_f32(r2.sqrt())
-        } else {
-            -1.0
-        };
+        let (r, nv, c) = (self.radius[i], self.normal[i], self.min_cos[i]);
         if r >= 0.0 && nv != Vec3::ZERO {
             Leaf {
                 radius: r,
@@ -272,17 +264,14 @@ fn size_from_triangles(
     // Working memory is a squared radius, a normal and a cosine per vertex.
     let n = positions.len();
     let have_normals = normals.is_some();
-    let mut sizes = VertexSizes {
-        normal: normals.unwrap_or_else(|| vec![Vec3::ZERO; n]),
-        radius_squared: vec![-1.0f64; n],
-        min_cos: vec![1.0f32; n],
-    };
+    let mut normal = normals.unwrap_or_else(|| vec![Vec3::ZERO; n]);
+    let mut radius_squared = vec![-1.0f64; n];
+    let mut min_cos = vec![1.0f32; n];
     let range_len = n.div_ceil(rayon::current_num_threads().max(1)).max(1 << 14);
-    sizes
-        .radius_squared
+    radius_squared
         .par_chunks_mut(range_len)
-        .zip(sizes.normal.par_chunks_mut(range_len))
-        .zip(sizes.min_cos.par_chunks_mut(range_len))
+        .zip(normal.par_chunks_mut(range_len))
+        .zip(min_cos.par_chunks_mut(range_len))
         .enumerate()
         .for_each(|(part, ((radius_squared, normal), min_cos))| {
             let first = part * range_len;
@@ -294,7 +283,27 @@ fn size_from_triangles(
             };
             range.size(positions, triangles, have_normals);
         });
-    sizes
+    // The square root and the round-up are monotonic, so taking them once,
+    // of the largest square, gives the largest of the triangles' rounded-up
+    // radii: the same f32, for a sixth of the roots. Converted here, so the
+    // 8-byte squares are gone before the leaves are made (the leaf step's
+    // memory peak).
+    let radius = radius_squared
+        .par_iter()
+        .with_min_len(LEAVES_PER_TASK)
+        .map(|&r2| {
+            if r2 >= 0.0 {
+                round_up_f32(r2.sqrt())
+            } else {
+                -1.0
+            }
+        })
+        .collect();
+    VertexSizes {
+        radius,
+        normal,
+        min_cos,
+    }
 }
 
 /// One thread's share of [`size_from_triangles`]: the working values of the
@@ -534,5 +543,96 @@ mod tests {
         assert_eq!(leaves.len(), 3);
         assert!(leaves.iter().all(|l| l.radius >= 0.5 && l.cone < 255));
         assert!(unpack_normal(leaves[0].normal).angle_between(Vec3::Z) < 1e-3);
+    }
+
+    /// A bumpy grid of 60 000 vertices, its triangles of varied sizes and
+    /// shapes (some obtuse), in an order that crosses the threads' ranges.
+    fn bumpy_mesh() -> (Vec<DVec3>, Vec<[u32; 3]>) {
+        let side = 245u32;
+        let mut x = 0x9e37_79b9_7f4a_7c15u64;
+        let mut jitter = || {
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            (x >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+        };
+        let positions = (0..side * side)
+            .map(|i| {
+                let (u, v) = (f64::from(i % side), f64::from(i / side));
+                DVec3::new(
+                    u + 0.4 * jitter(),
+                    v + 0.4 * jitter(),
+                    (u * 0.3).sin() + jitter(),
+                )
+            })
+            .collect();
+        let mut triangles = Vec::new();
+        for v in 0..side - 1 {
+            for u in 0..side - 1 {
+                let i = v * side + u;
+                triangles.push([i, i + 1, i + side]);
+                triangles.push([i + 1, i + side + 1, i + side]);
+            }
+        }
+        triangles.reverse();
+        (positions, triangles)
+    }
+
+    #[test]
+    fn a_vertex_gets_the_largest_rounded_up_radius_of_its_triangles() {
+        let (positions, triangles) = bumpy_mesh();
+        let sizes = size_from_triangles(&positions, &triangles, None);
+        // The definition, per triangle: its bounding radius rounded up to
+        // f32, the largest over the vertex's triangles.
+        let mut expected = vec![-1.0f32; positions.len()];
+        for t in &triangles {
+            let [a, b, c] = t.map(|i| positions[i as usize]);
+            let r = round_up_f32(triangle_bounding_radius(a, b, c));
+            for &i in t {
+                expected[i as usize] = expected[i as usize].max(r);
+            }
+        }
+        assert_eq!(sizes.radius, expected);
+    }
+
+    /// The cone's cosine by its definition: for each vertex, the smallest
+    /// cosine between its normal and the unit normals of its faces.
+    fn min_cos_by_definition(
+        positions: &[DVec3],
+        triangles: &[[u32; 3]],
+        normal: &[Vec3],
+    ) -> Vec<f32> {
+        let mut min_cos = vec![1.0f32; positions.len()];
+        for t in triangles {
+            let [a, b, c] = t.map(|i| positions[i as usize]);
+            if let Some(face) = (b - a).cross(c - a).try_normalize() {
+                for &i in t {
+                    let i = i as usize;
+                    min_cos[i] = min_cos[i].min(normal[i].dot(face.as_vec3()));
+                }
+            }
+        }
+        min_cos
+    }
+
+    #[test]
+    fn cones_from_one_walk_and_from_two_walks_follow_their_definition() {
+        let (positions, triangles) = bumpy_mesh();
+        // Two walks: the normals summed from the faces, then the cones.
+        let computed = size_from_triangles(&positions, &triangles, None);
+        let expected = min_cos_by_definition(&positions, &triangles, &computed.normal);
+        assert!(computed.min_cos == expected, "two-walk cones differ");
+        assert!(
+            computed.min_cos.iter().any(|&c| c < 0.99),
+            "cones too narrow to test"
+        );
+        // One walk, with those normals given as the input's.
+        let given = size_from_triangles(&positions, &triangles, Some(computed.normal.clone()));
+        let expected = min_cos_by_definition(&positions, &triangles, &given.normal);
+        assert!(given.min_cos == expected, "one-walk cones differ");
+        assert!(
+            given.radius == computed.radius,
+            "radii depend on the normals"
+        );
     }
 }

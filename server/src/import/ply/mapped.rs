@@ -4,10 +4,12 @@
 //! on a virtual machine each fresh page can cost microseconds to fault in
 //! (the host backs it on first touch): for igea.ply the two reads took from
 //! 0.6 to 2.4 ms of a 40 ms build. The file's pages are already in the page
-//! cache, so mapping them copies nothing and faults nothing fresh. Pages
-//! behind the element being decoded are handed back as each element
-//! begins, so the import's peak is what the buffered reader's was: about
-//! one element's bytes beside what they decode to.
+//! cache, so mapping them copies nothing and zeroes nothing. Pages are
+//! mapped in as the decoders reach them (the kernel maps a few dozen
+//! kilobytes around each fault), and the whole pages behind the element
+//! being decoded are handed back as each element begins, so the import
+//! holds about what the buffered reader held: one element's bytes (the
+//! last one's until the import ends) beside what they decode to.
 
 use std::fs::File;
 use std::io;
@@ -27,8 +29,8 @@ pub(super) struct Mapped {
 }
 
 impl Mapped {
-    /// Maps `file`, whose body starts at `body_start`; `None` when it cannot
-    /// be mapped (a pipe, a special file), and the caller reads it instead.
+    /// Maps `file` (a regular file), whose body starts at `body_start`;
+    /// `None` when it cannot be mapped, and the caller reads it instead.
     pub(super) fn new(file: &File, body_start: u64, big: bool) -> Option<Self> {
         let pos = usize::try_from(body_start).ok()?;
         // SAFETY: the map is read-only and only read while `Mapped` lives.
@@ -36,7 +38,7 @@ impl Mapped {
         // new end raise SIGBUS: the documented hazard of memory maps (ripgrep
         // takes it too), which a reader cannot guard against short of
         // copying the file, which is what this avoids.
-        let map = unsafe { MmapOptions::new().populate().map(file) }.ok()?;
+        let map = unsafe { MmapOptions::new().map(file) }.ok()?;
         Some(Self {
             map,
             pos,

@@ -44,7 +44,9 @@ const MAX_HEADER: u64 = 1 << 20;
 
 /// The body length assumed for a file of unknown length (a pipe): a bound
 /// on what is allocated ahead of reading, so a header's counts cannot make
-/// it allocate more; the body itself is read to its end.
+/// it allocate more; the body itself is read to its end. (The decoded
+/// vectors are sized from it too, at up to a few times as many bytes; that
+/// is address space reserved, not memory touched, until data arrives.)
 const UNKNOWN_BODY: u64 = 1 << 26;
 
 /// Loads a PLY file as one geometry: triangles when it has `face` or
@@ -82,7 +84,9 @@ fn load_from(path: &Path, map: bool) -> Result<Scene, ImportError> {
         }
         Format::BinaryLe | Format::BinaryBe => {
             let big = header.format == Format::BinaryBe;
-            if let Some(mut src) = map
+            // Only a regular file is mapped: a pipe or a device has no
+            // length to map, and is read to its end instead.
+            if let Some(mut src) = (map && file_len.is_some())
                 .then(|| Mapped::new(reader.get_ref(), header.bytes, big))
                 .flatten()
             {
@@ -1095,6 +1099,75 @@ mod tests {
         }
     }
 
+    /// A body of several pages: the mapped reader hands back the pages of
+    /// each decoded element (the vertices, a skipped element) as the next
+    /// begins, and must still decode what follows exactly; and a long strip
+    /// list after a short one appends its parallel result to triangles
+    /// already read. Both compared with ASCII (and, by `load_bytes`, with
+    /// the buffered reader).
+    #[test]
+    fn a_many_page_body_with_a_long_strip_list_after_a_short_one() {
+        let vertices = 2000u32;
+        let mut x = 7u32;
+        let mut long = Vec::new();
+        while long.len() < 100_000 {
+            x = x.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+            let start = (x >> 8) % (vertices - 40);
+            long.extend((0..(x >> 27) + 3).map(|k| (start + k) as i32));
+            long.push(-1);
+        }
+        let lists: [&[i32]; 2] = [&[0, 1, 2, 3], &long];
+        let file = |binary: bool| {
+            let format = if binary {
+                "binary_little_endian"
+            } else {
+                "ascii"
+            };
+            let mut b = format!(
+                "ply\nformat {format} 1.0\nelement vertex {vertices}\nproperty float x\n\
+                 property float y\nproperty float z\nelement junk 3000\nproperty int j\n\
+                 element tristrips 2\nproperty list int int vertex_indices\nend_header\n"
+            )
+            .into_bytes();
+            for i in 0..vertices {
+                let c = [i % 50, i / 50, i % 7].map(|v| v as f32);
+                if binary {
+                    b.extend(c.iter().flat_map(|v| v.to_le_bytes()));
+                } else {
+                    b.extend(format!("{} {} {}\n", c[0], c[1], c[2]).bytes());
+                }
+            }
+            for j in 0..3000i32 {
+                if binary {
+                    b.extend(j.to_le_bytes());
+                } else {
+                    b.extend(format!("{j}\n").bytes());
+                }
+            }
+            for list in lists {
+                if binary {
+                    b.extend((list.len() as i32).to_le_bytes());
+                    b.extend(list.iter().flat_map(|i| i.to_le_bytes()));
+                } else {
+                    let text: Vec<String> = list.iter().map(i32::to_string).collect();
+                    b.extend(format!("{} {}\n", list.len(), text.join(" ")).bytes());
+                }
+            }
+            b
+        };
+        let ascii = load_bytes(&file(false)).unwrap();
+        let binary = load_bytes(&file(true)).unwrap();
+        assert!(file(true).len() > 16 * 4096, "the body spans several pages");
+        assert_eq!(&tris(&ascii)[..2], &[[0, 1, 2], [2, 1, 3]]);
+        assert!(
+            tris(&ascii).len() > 50_000,
+            "{} triangles",
+            tris(&ascii).len()
+        );
+        assert_eq!(binary.positions, ascii.positions);
+        assert_eq!(tris(&binary), tris(&ascii));
+    }
+
     /// The same strips in binary take the whole-element fast path; they
     /// must give what the ASCII reader gives, and a bad index in them the
     /// same error, naming the instance.
@@ -1225,7 +1298,8 @@ mod tests {
     #[test]
     fn a_pipe_is_read_instead_of_mapped() {
         // A named pipe cannot be mapped: the body must be read instead.
-        let path = std::env::temp_dir().join(format!("ff-ply-{}-pipe.ply", std::process::id()));
+        let path = temp("pipe.ply", b"");
+        std::fs::remove_file(&path).unwrap();
         let c_path = std::ffi::CString::new(path.to_str().unwrap()).unwrap();
         // SAFETY: a valid NUL-terminated path.
         assert_eq!(unsafe { libc::mkfifo(c_path.as_ptr(), 0o600) }, 0);
