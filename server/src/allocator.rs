@@ -59,15 +59,18 @@ unsafe impl GlobalAlloc for HugePageAlloc {
     }
 }
 
+/// The system's memory page size, if it reports a sensible one.
+pub fn page_size() -> Option<usize> {
+    // SAFETY: `sysconf` has no preconditions.
+    let size = unsafe { libc::sysconf(libc::_SC_PAGESIZE) };
+    usize::try_from(size).ok().filter(|&s| s > 0)
+}
+
 /// The first and end address of the whole pages inside `len` bytes at
 /// `block`, if there are any.
 #[cfg(target_os = "linux")]
 fn whole_pages(block: *mut u8, len: usize) -> Option<(usize, usize)> {
-    // SAFETY: `sysconf` has no preconditions.
-    let page = match unsafe { libc::sysconf(libc::_SC_PAGESIZE) } {
-        p if p > 0 => p as usize,
-        _ => return None,
-    };
+    let page = page_size()?;
     let start = (block as usize).next_multiple_of(page);
     let end = (block as usize + len) / page * page;
     (end > start).then_some((start, end))
@@ -154,8 +157,7 @@ mod tests {
     #[test]
     #[cfg(target_os = "linux")]
     fn release_discards_exactly_the_whole_pages_inside_a_block() {
-        // SAFETY: `sysconf` has no preconditions.
-        let page = unsafe { libc::sysconf(libc::_SC_PAGESIZE) } as usize;
+        let page = page_size().unwrap();
         let mut buffer = vec![7u8; 64 * page + 100];
         // An unaligned stretch: its first and last partial pages stay.
         let (offset, len) = (page / 2 + 3, 20 * page);

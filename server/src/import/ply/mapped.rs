@@ -55,7 +55,7 @@ impl Mapped {
     /// elements' bytes, which nothing reads again. They stay in the page
     /// cache; only this process's resident memory shrinks.
     fn release_decoded(&mut self) {
-        let page = page_size();
+        let page = crate::allocator::page_size().unwrap_or(4096);
         let end = self.pos.min(self.map.len()) / page * page;
         if end > self.released {
             // SAFETY: the range is inside the map and behind `pos`, so no
@@ -72,15 +72,6 @@ impl Mapped {
             self.released = end;
         }
     }
-}
-
-fn page_size() -> usize {
-    // SAFETY: sysconf has no preconditions.
-    let size = unsafe { libc::sysconf(libc::_SC_PAGESIZE) };
-    usize::try_from(size)
-        .ok()
-        .filter(|&s| s > 0)
-        .unwrap_or(4096)
 }
 
 impl Values for Mapped {
