@@ -1,5 +1,6 @@
-//! `farfield bench` and `report` end to end: a sweep over a small scene,
-//! streamed from a real server, its tables, plots and page.
+//! The benchmarks end to end: `farfield bench` and `report` (a sweep over a
+//! small scene, streamed from a real server, its tables, plots and page), and
+//! `farfield-server bench build`'s summary.
 
 use std::time::Duration;
 
@@ -95,4 +96,46 @@ fn a_streamed_sweep_writes_tables_plots_and_a_report() {
     }
     assert!(html.contains("CPU") && html.contains(&renderer.adapter_description()));
     rt.block_on(server.shutdown()).unwrap();
+}
+
+#[test]
+fn bench_build_reports_throughput_memory_and_what_the_machine_gave() {
+    let report = crate::cli(&[
+        "bench",
+        "build",
+        "gen:tree",
+        "--param",
+        "triangles=3000",
+        "--repeats",
+        "3",
+        "--json",
+    ])
+    .unwrap();
+    let j = &report.json;
+    let number = |key: &str| {
+        j[key]
+            .as_f64()
+            .unwrap_or_else(|| panic!("{key} missing: {j}"))
+    };
+    assert_eq!(j["repeats"], 3);
+    assert!(number("input_vertices") > 1000.0);
+    let rate = number("vertices_per_second_import_and_build");
+    assert!(rate > 0.0 && rate.is_finite());
+    assert!(number("vertices_per_second_build") >= rate);
+    assert!(number("peak_rss_bytes_first_build") > 0.0);
+    // The machine's figures come from Linux's /proc and getrusage.
+    if cfg!(target_os = "linux") {
+        let threads = number("threads");
+        let busy = number("busy_threads");
+        // Other test threads share the process: up to every CPU, no more.
+        let cpus = std::thread::available_parallelism().map_or(1, |n| n.get()) as f64;
+        assert!(busy > 0.0 && busy <= cpus + 0.5, "{busy} of {threads}");
+        let steal = number("host_steal_fraction");
+        assert!((0.0..=1.0).contains(&steal), "steal {steal}");
+    }
+    assert!(
+        report.text.contains("threads busy, host steal"),
+        "{}",
+        report.text
+    );
 }

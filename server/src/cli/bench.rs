@@ -10,6 +10,7 @@ use farfield_protocol::traverse::{Cut, TraverseOptions, traverse_into};
 use serde_json::json;
 
 use super::build::load_inputs;
+use super::cpu::CpuClock;
 use super::{Report, median, memory};
 use crate::build::{BuildOptions, build_spheres};
 use crate::import::Params;
@@ -35,6 +36,7 @@ pub fn build(
     // The peak of the first build alone: later repeats add what the
     // allocator kept from earlier ones, which no single build holds.
     let mut peak_first = None;
+    let clock = CpuClock::now();
     for _ in 0..repeats.max(1) {
         let started = Instant::now();
         let scene = load_inputs(inputs, &params)?;
@@ -56,6 +58,7 @@ pub fn build(
         drop(file);
         peak_first = peak_first.or_else(memory::peak_rss_bytes);
     }
+    let cpu = clock.until(&CpuClock::now());
     // The first build pays for all its memory fresh from the kernel, as a
     // one-off `build` command does; later repeats reuse some of what the
     // allocator kept. Both are reported.
@@ -84,9 +87,11 @@ pub fn build(
         "peak_rss_bytes_all_repeats": memory::peak_rss_bytes(),
         "peak_rss_bytes_per_vertex_first_build": peak.map(|p| p as f64 / vertices as f64),
         "peak_rss_above_start_bytes_per_vertex_first_build": above_start,
+        "busy_threads": cpu.busy_threads,
+        "host_steal_fraction": cpu.steal_fraction,
     });
     let text = format!(
-        "{}: {} vertices, median {:.3} s import+build ({:.2} M vertices/s), {:.3} s build ({:.2} M vertices/s), first build {:.3} s import+build ({:.2} M vertices/s), peak RSS of the first build {} MiB ({:.1} bytes/vertex, {:.1} above the start); steps (ms): import {:.1}, leaves {:.1}, tree {:.1}, layout {:.1}",
+        "{}: {} vertices, median {:.3} s import+build ({:.2} M vertices/s), {:.3} s build ({:.2} M vertices/s), first build {:.3} s import+build ({:.2} M vertices/s), peak RSS of the first build {} MiB ({:.1} bytes/vertex, {:.1} above the start); steps (ms): import {:.1}, leaves {:.1}, tree {:.1}, layout {:.1}; {:.2} of {} threads busy, host steal {:.1} %",
         inputs.join(" "),
         vertices,
         t,
@@ -102,6 +107,9 @@ pub fn build(
         leaves * 1e3,
         tree * 1e3,
         layout * 1e3,
+        cpu.busy_threads.unwrap_or(f64::NAN),
+        rayon::current_num_threads(),
+        cpu.steal_fraction.map_or(f64::NAN, |f| f * 100.0),
     );
     Ok(Report {
         json,

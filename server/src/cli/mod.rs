@@ -5,6 +5,7 @@
 
 mod bench;
 mod build;
+mod cpu;
 mod inspect;
 pub mod memory;
 mod serve;
