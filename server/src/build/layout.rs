@@ -70,7 +70,6 @@ pub fn lay_out(tree: Tree, input: LayoutInput) -> PagedFile {
         nodes: interior.shared(),
     };
 
-    let mut depth = 0u32;
     let mut nodes = 0u64;
     let mut leaves = 0u64;
     // Breadth-first index of the next child to be placed.
@@ -80,16 +79,12 @@ pub fn lay_out(tree: Tree, input: LayoutInput) -> PagedFile {
     // SAFETY: no other thread runs yet.
     let root_record = unsafe { tree.quantize(root, root_center, root_radius, input.layout) };
     let root_bytes = root_record.pack(input.layout).to_le_bytes();
-    pages.add_group(depth, &root_bytes[..node_bytes], next_child);
+    pages.add_group(0, &root_bytes[..node_bytes], next_child);
     next_child += root_record.children.get() as u64;
     nodes += 1;
-    // A level is the list of its interior nodes, held as the lists the
-    // tasks of the level above produced (each exactly sized): joining them
-    // into one vector would hold a level twice, and growing it would hold
-    // it up to three times, at the build's memory peak.
-    let mut level: Vec<Vec<u32>> = Vec::new();
+    let mut windows = Windows::default();
     match root.get() {
-        Err(node) => level.push(vec![node as u32]),
+        Err(node) => windows.next.push(vec![node as u32]),
         Ok(l) => {
             leaves += 1;
             if input.record_leaf_sources {
@@ -97,62 +92,78 @@ pub fn lay_out(tree: Tree, input: LayoutInput) -> PagedFile {
             }
         }
     }
-    while !level.is_empty() {
-        pages.end_level();
-        depth += 1;
-        let mut next = Vec::new();
-        let mut lists = level.into_iter().peekable();
-        while lists.peek().is_some() {
-            // A window of lists, freed once placed.
-            let mut window = Vec::new();
-            let mut parents = 0;
-            while parents < LAYOUT_CHUNK
-                && let Some(list) = lists.next()
-            {
-                parents += list.len();
-                window.push(list);
-            }
-            // Quantize this window's sibling groups on all threads, then
-            // place the records in order: the only serial work is copying
-            // record bytes into pages.
-            let tasks: Vec<&[u32]> = window
-                .iter()
-                .flat_map(|list| list.chunks(layout_grain(parents)))
-                .collect();
-            let placed: Vec<PlacedGroups> = tasks
-                .par_iter()
-                // SAFETY: a task reads its parents (quantized at the level
-                // above, by tasks that have finished) and reads, then
-                // writes, their children. A node has one parent and a
-                // parent is in one task, so no node is written by two
-                // tasks or read by one while another writes it.
-                .map(|parents| unsafe { tree.quantize_groups(parents, input.layout) })
-                .collect();
-            for (parents, placed) in tasks.iter().zip(placed) {
-                let mut offset = 0;
-                for (&parent, &(count, grandchildren)) in parents.iter().zip(&placed.groups) {
-                    let end = offset + usize::from(count) * node_bytes;
-                    pages.add_group(depth, &placed.bytes[offset..end], next_child);
-                    offset = end;
-                    if input.record_leaf_sources {
-                        // SAFETY: no task runs now.
-                        let node = unsafe { tree.nodes.get(parent as usize) };
-                        for (i, child) in node.children[..usize::from(count)].iter().enumerate() {
-                            if let Ok(l) = child.get() {
-                                leaf_sources.push((leaf_list[l].source, nodes + i as u64));
-                            }
+    // Records are placed in pages in order, on one thread: the only serial
+    // work. Each window is placed while the next one is quantized on the
+    // pool's threads, so they are not idle meanwhile. The placing stays on
+    // this thread, whose allocator heap holds the memory freed by earlier
+    // steps: pages made on a worker thread came from fresh memory and
+    // raised the island's peak by 4 %.
+    let mut place = |window: Window, placed: Vec<PlacedGroups>| {
+        if window.starts_level {
+            pages.end_level();
+        }
+        for (parents, placed) in window.tasks().zip(placed) {
+            let mut offset = 0;
+            for (&parent, &(count, grandchildren)) in parents.iter().zip(&placed.groups) {
+                let end = offset + usize::from(count) * node_bytes;
+                pages.add_group(window.depth, &placed.bytes[offset..end], next_child);
+                offset = end;
+                if input.record_leaf_sources {
+                    // SAFETY: a read of a parent, which no task writes: the
+                    // tasks running now write the next level's children.
+                    let node = unsafe { tree.nodes.get(parent as usize) };
+                    for (i, child) in node.children[..usize::from(count)].iter().enumerate() {
+                        if let Ok(l) = child.get() {
+                            leaf_sources.push((leaf_list[l].source, nodes + i as u64));
                         }
                     }
-                    next_child += u64::from(grandchildren);
-                    nodes += u64::from(count);
                 }
-                leaves += placed.leaves;
-                if !placed.next.is_empty() {
-                    next.push(placed.next);
+                next_child += u64::from(grandchildren);
+                nodes += u64::from(count);
+            }
+            leaves += placed.leaves;
+        }
+    };
+    let mut pending = None;
+    loop {
+        let window = windows.take();
+        if window.is_none() && pending.is_none() {
+            break;
+        }
+        let mut quantized = None;
+        rayon::in_place_scope(|scope| {
+            scope.spawn(|_| {
+                quantized = window.map(|window| {
+                    let tasks: Vec<&[u32]> = window.tasks().collect();
+                    let placed: Vec<PlacedGroups> = tasks
+                        .par_iter()
+                        // SAFETY: a task reads its parents (quantized at
+                        // the level above, by tasks that have finished) and
+                        // reads, then writes, their children. A node has one
+                        // parent and a parent is in one task, so no node is
+                        // written by two tasks or read by one while another
+                        // writes it; the placement beside only reads
+                        // parents of its own window.
+                        .map(|parents| unsafe { tree.quantize_groups(parents, input.layout) })
+                        .collect();
+                    (window, placed)
+                });
+            });
+            if let Some((window, placed)) = pending.take() {
+                place(window, placed);
+            }
+        });
+        if let Some((_, placed)) = &mut quantized {
+            // The next level, in order: complete once this level's last
+            // window is quantized, before its first window is taken.
+            for p in placed {
+                let next = std::mem::take(&mut p.next);
+                if !next.is_empty() {
+                    windows.next.push(next);
                 }
             }
         }
-        level = next;
+        pending = quantized;
     }
     drop(tree);
     drop(leaf_list);
@@ -169,7 +180,7 @@ pub fn lay_out(tree: Tree, input: LayoutInput) -> PagedFile {
             leaf_geometry: false,
         },
         node_bytes: node_bytes as u32,
-        levels: depth,
+        levels: windows.depth,
         nodes,
         leaves,
         input_vertices: input.input_vertices,
@@ -203,6 +214,65 @@ const LAYOUT_GRAIN: usize = 1 << 10;
 /// shorter lists.)
 fn layout_grain(parents: usize) -> usize {
     (parents / (4 * rayon::current_num_threads())).clamp(64, LAYOUT_GRAIN)
+}
+
+/// The parents whose sibling groups are quantized together, with the level
+/// they are in.
+struct Window {
+    depth: u32,
+    /// Whether this is its level's first window: pages mark level ends.
+    starts_level: bool,
+    lists: Vec<Vec<u32>>,
+    parents: usize,
+}
+
+impl Window {
+    /// The parents of each parallel task, in order.
+    fn tasks(&self) -> impl Iterator<Item = &[u32]> {
+        let grain = layout_grain(self.parents);
+        self.lists.iter().flat_map(move |list| list.chunks(grain))
+    }
+}
+
+/// The levels' interior nodes, cut into windows of about [`LAYOUT_CHUNK`]
+/// parents. A level is held as the lists the tasks of the level above
+/// produced (each exactly sized): joining them into one vector would hold a
+/// level twice, and growing it would hold it up to three times, at the
+/// build's memory peak. Windows are freed once placed.
+#[derive(Default)]
+struct Windows {
+    current: std::vec::IntoIter<Vec<u32>>,
+    /// The next level's lists, pushed as this level's windows are quantized.
+    next: Vec<Vec<u32>>,
+    depth: u32,
+}
+
+impl Windows {
+    /// The next window, moving on to the next level when this one is used
+    /// up; `None` once the next level is empty too.
+    fn take(&mut self) -> Option<Window> {
+        let starts_level = self.current.as_slice().is_empty();
+        if starts_level {
+            if self.next.is_empty() {
+                return None;
+            }
+            self.current = std::mem::take(&mut self.next).into_iter();
+            self.depth += 1;
+        }
+        let mut window = Window {
+            depth: self.depth,
+            starts_level,
+            lists: Vec::new(),
+            parents: 0,
+        };
+        while window.parents < LAYOUT_CHUNK
+            && let Some(list) = self.current.next()
+        {
+            window.parents += list.len();
+            window.lists.push(list);
+        }
+        Some(window)
+    }
 }
 
 /// One task's output: the packed records of its parents' children, in
@@ -524,4 +594,44 @@ fn page0_next_child(page0: &[u8], header: PageHeader, node_bytes: usize) -> u64 
         next += NodeRecord::child_count(u64::from_le_bytes(word)) as u64;
     }
     next
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn windows_cut_levels_at_the_chunk_and_mark_each_levels_first() {
+        let list = |start: u32, len: u32| (start..start + len).collect::<Vec<u32>>();
+        let chunk = LAYOUT_CHUNK as u32;
+        let mut windows = Windows::default();
+        assert!(windows.take().is_none(), "no levels, no windows");
+        windows.next = vec![list(0, chunk - 10), list(chunk, 20), list(2 * chunk, 5)];
+
+        let first = windows.take().unwrap();
+        assert!(first.starts_level);
+        assert_eq!((first.depth, first.parents), (1, chunk as usize + 10));
+        // Its tasks are its parents, in order, each once.
+        let parents: Vec<u32> = first.tasks().flatten().copied().collect();
+        assert_eq!(parents, [list(0, chunk - 10), list(chunk, 20)].concat());
+        assert!(
+            first.tasks().count() > 1,
+            "a window is shared between tasks"
+        );
+
+        let second = windows.take().unwrap();
+        assert!(!second.starts_level);
+        assert_eq!(
+            (second.depth, second.lists.clone()),
+            (1, vec![list(2 * chunk, 5)])
+        );
+
+        // The next level arrives as the last window is quantized.
+        windows.next.push(list(7, 3));
+        let third = windows.take().unwrap();
+        assert!(third.starts_level);
+        assert_eq!((third.depth, third.parents), (2, 3));
+        assert!(windows.take().is_none());
+        assert_eq!(windows.depth, 2, "the deepest level's depth is kept");
+    }
 }
