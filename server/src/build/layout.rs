@@ -109,8 +109,9 @@ pub fn lay_out(tree: Tree, input: LayoutInput) -> PagedFile {
                 pages.add_group(window.depth, &placed.bytes[offset..end], next_child);
                 offset = end;
                 if input.record_leaf_sources {
-                    // SAFETY: a read of a parent, which no task writes: the
-                    // tasks running now write the next level's children.
+                    // SAFETY: a read of a parent of this window; the tasks
+                    // running now write only children of the next window's
+                    // parents, which lie a level or two below it.
                     let node = unsafe { tree.nodes.get(parent as usize) };
                     for (i, child) in node.children[..usize::from(count)].iter().enumerate() {
                         if let Ok(l) = child.get() {
@@ -216,9 +217,10 @@ fn layout_grain(parents: usize) -> usize {
     (parents / (4 * rayon::current_num_threads())).clamp(64, LAYOUT_GRAIN)
 }
 
-/// The parents whose sibling groups are quantized together, with the level
-/// they are in.
+/// The parents whose sibling groups are quantized together (about
+/// [`LAYOUT_CHUNK`] of them, all of one level), as the lists they came in.
 struct Window {
+    /// The level of its parents' children, which its records are.
     depth: u32,
     /// Whether this is its level's first window: pages mark level ends.
     starts_level: bool,
@@ -244,6 +246,8 @@ struct Windows {
     current: std::vec::IntoIter<Vec<u32>>,
     /// The next level's lists, pushed as this level's windows are quantized.
     next: Vec<Vec<u32>>,
+    /// The level of the current windows' children (the root's is 0); once
+    /// all are taken, the deepest level.
     depth: u32,
 }
 
