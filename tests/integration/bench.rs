@@ -130,11 +130,13 @@ fn bench_build_reports_throughput_memory_and_what_the_machine_gave() {
         // Other test threads share the process: up to every CPU, no more.
         let cpus = std::thread::available_parallelism().map_or(1, |n| n.get()) as f64;
         assert!(busy > 0.0 && busy <= cpus + 0.5, "{busy} of {threads}");
-        let steal = number("host_steal_fraction");
-        assert!((0.0..=1.0).contains(&steal), "steal {steal}");
+        // Absent only where /proc/stat is empty or frozen (some sandboxes).
+        if let Some(steal) = j["host_steal_fraction"].as_f64() {
+            assert!((0.0..=1.0).contains(&steal), "steal {steal}");
+        }
     }
     assert!(
-        report.text.contains("threads busy, host steal"),
+        report.text.contains("worker threads), steal"),
         "{}",
         report.text
     );

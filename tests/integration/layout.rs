@@ -13,18 +13,20 @@ fn island() -> farfield_server::build::PagedFile {
     build(load_input("gen:island", &params).expect("gen:island"))
 }
 
+/// Runs `work` on a pool of `threads` threads.
+fn on_threads<T: Send>(threads: usize, work: impl FnOnce() -> T + Send) -> T {
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .expect("thread pool")
+        .install(work)
+}
+
 #[test]
 fn the_file_is_the_same_on_any_thread_count() {
     // The tree's tasks, the leaves' vertex ranges and the layout's task
     // sizes all depend on the thread count; the bytes must not.
-    let on = |threads| {
-        rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
-            .expect("thread pool")
-            .install(island)
-    };
-    let (one, three) = (on(1), on(3));
+    let (one, three) = (on_threads(1, island), on_threads(3, island));
     assert!(one.header.nodes > 50_000, "{} nodes", one.header.nodes);
     assert!(
         one.header == three.header,
@@ -40,6 +42,37 @@ fn the_file_is_the_same_on_any_thread_count() {
     assert!(
         one.leaf_sources == three.leaf_sources,
         "vertices land in other nodes on 1 and 3 threads"
+    );
+}
+
+#[test]
+fn levels_of_many_windows_are_the_same_on_any_thread_count() {
+    // The layout quantizes a level in windows of 32 Ki parents and places
+    // each while the next is quantized; on one thread the two take turns.
+    // A terrain of 512 x 512 vertices has levels of more parents than that.
+    let terrain = || {
+        let mut params = Params::default();
+        params.set("size", 512);
+        params.set("trees", 0);
+        build(load_input("gen:island", &params).expect("gen:island"))
+    };
+    let (one, three) = (on_threads(1, terrain), on_threads(3, terrain));
+    let mut parents_per_level = vec![0usize; one.header.levels as usize + 1];
+    for node in resident(&one).decode_all() {
+        if node.children > 0 {
+            parents_per_level[node.level as usize] += 1;
+        }
+    }
+    let widest = parents_per_level.iter().copied().max().unwrap_or(0);
+    assert!(widest > 2 * 32 * 1024, "widest level has {widest} parents");
+    assert!(one.header == three.header, "headers differ");
+    assert!(
+        one.pages == three.pages,
+        "pages differ between 1 and 3 threads"
+    );
+    assert!(
+        one.leaf_sources == three.leaf_sources,
+        "leaf sources differ"
     );
 }
 

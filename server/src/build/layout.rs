@@ -102,6 +102,7 @@ pub fn lay_out(tree: Tree, input: LayoutInput) -> PagedFile {
         if window.starts_level {
             pages.end_level();
         }
+        debug_assert_eq!(window.tasks().count(), placed.len());
         for (parents, placed) in window.tasks().zip(placed) {
             let mut offset = 0;
             for (&parent, &(count, grandchildren)) in parents.iter().zip(&placed.groups) {
@@ -226,13 +227,16 @@ struct Window {
     starts_level: bool,
     lists: Vec<Vec<u32>>,
     parents: usize,
+    /// Parents per task, fixed when the window is cut: the quantizing and
+    /// the placing must cut the same tasks, and they run on different
+    /// threads.
+    grain: usize,
 }
 
 impl Window {
     /// The parents of each parallel task, in order.
     fn tasks(&self) -> impl Iterator<Item = &[u32]> {
-        let grain = layout_grain(self.parents);
-        self.lists.iter().flat_map(move |list| list.chunks(grain))
+        self.lists.iter().flat_map(|list| list.chunks(self.grain))
     }
 }
 
@@ -268,6 +272,7 @@ impl Windows {
             starts_level,
             lists: Vec::new(),
             parents: 0,
+            grain: 0,
         };
         while window.parents < LAYOUT_CHUNK
             && let Some(list) = self.current.next()
@@ -275,6 +280,7 @@ impl Windows {
             window.parents += list.len();
             window.lists.push(list);
         }
+        window.grain = layout_grain(window.parents);
         Some(window)
     }
 }
@@ -610,18 +616,16 @@ mod tests {
         let chunk = LAYOUT_CHUNK as u32;
         let mut windows = Windows::default();
         assert!(windows.take().is_none(), "no levels, no windows");
-        windows.next = vec![list(0, chunk - 10), list(chunk, 20), list(2 * chunk, 5)];
+        windows.next = vec![list(0, chunk + 10), list(2 * chunk, 5)];
 
         let first = windows.take().unwrap();
         assert!(first.starts_level);
         assert_eq!((first.depth, first.parents), (1, chunk as usize + 10));
-        // Its tasks are its parents, in order, each once.
+        // Its tasks are its parents, in order, each once; one long list
+        // is shared between several tasks.
         let parents: Vec<u32> = first.tasks().flatten().copied().collect();
-        assert_eq!(parents, [list(0, chunk - 10), list(chunk, 20)].concat());
-        assert!(
-            first.tasks().count() > 1,
-            "a window is shared between tasks"
-        );
+        assert_eq!(parents, list(0, chunk + 10));
+        assert!(first.tasks().count() > 1, "one list, one task");
 
         let second = windows.take().unwrap();
         assert!(!second.starts_level);

@@ -91,7 +91,7 @@ pub fn build(
         "host_steal_fraction": cpu.steal_fraction,
     });
     let text = format!(
-        "{}: {} vertices, median {:.3} s import+build ({:.2} M vertices/s), {:.3} s build ({:.2} M vertices/s), first build {:.3} s import+build ({:.2} M vertices/s), peak RSS of the first build {} MiB ({:.1} bytes/vertex, {:.1} above the start); steps (ms): import {:.1}, leaves {:.1}, tree {:.1}, layout {:.1}; {:.2} of {} threads busy, host steal {:.1} %",
+        "{}: {} vertices, median {:.3} s import+build ({:.2} M vertices/s), {:.3} s build ({:.2} M vertices/s), first build {:.3} s import+build ({:.2} M vertices/s), peak RSS of the first build {} MiB ({:.1} bytes/vertex, {:.1} above the start); steps (ms): import {:.1}, leaves {:.1}, tree {:.1}, layout {:.1}; CPU time {:.2} s per second ({} worker threads), steal {:.1} %",
         inputs.join(" "),
         vertices,
         t,

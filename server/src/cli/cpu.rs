@@ -26,8 +26,11 @@ pub struct CpuUse {
     /// Process CPU seconds (user and system, all threads) per wall second:
     /// 2.0 means two threads busy all the time.
     pub busy_threads: Option<f64>,
-    /// Steal ticks over all ticks of all the host's CPUs: the share of the
-    /// machine the hypervisor gave to someone else.
+    /// Steal ticks over all ticks of all the machine's CPUs (in a virtual
+    /// machine, its virtual CPUs): the share of the machine's time the
+    /// hypervisor gave to someone else. Idle CPUs count in the total, so
+    /// on a machine with more CPUs than the build keeps busy, steal from
+    /// the busy ones is diluted.
     pub steal_fraction: Option<f64>,
 }
 
@@ -82,7 +85,8 @@ impl HostTicks {
             .collect::<Option<_>>()?;
         // Kernels older than 2.6.11 have no steal column: no figure then.
         (ticks.len() == 8).then(|| Self {
-            total: ticks.iter().sum(),
+            // Counters only grow, but a corrupt line must not overflow.
+            total: ticks.iter().fold(0u64, |sum, &t| sum.wrapping_add(t)),
             steal: ticks[7],
         })
     }
@@ -90,9 +94,9 @@ impl HostTicks {
 
 #[cfg(target_os = "linux")]
 fn process_cpu_seconds() -> Option<f64> {
-    // SAFETY: `getrusage` only writes the struct it is given, which is
-    // plain old data, zeroed beforehand.
+    // SAFETY: `rusage` is plain old data, for which all zeros is a value.
     let mut usage: libc::rusage = unsafe { std::mem::zeroed() };
+    // SAFETY: `getrusage` only writes the struct it is given.
     if unsafe { libc::getrusage(libc::RUSAGE_SELF, &mut usage) } != 0 {
         return None;
     }
