@@ -1,33 +1,35 @@
 //! The breadth-first paged layout: page 0 is the coarse model, children
 //! only point forward, and a flipped bit anywhere is caught.
 
+use farfield_server::build::PagedFile;
 use farfield_server::import::{Params, load_input};
 use farfield_tests::scratch;
 
 use crate::{build, cli, resident, write_and_open};
 
-fn island() -> farfield_server::build::PagedFile {
+fn island() -> PagedFile {
+    island_of(128, 4)
+}
+
+/// `gen:island` with `size` x `size` terrain vertices and `trees` trees.
+fn island_of(size: u32, trees: u32) -> PagedFile {
     let mut params = Params::default();
-    params.set("size", 128);
-    params.set("trees", 4);
+    params.set("size", size);
+    params.set("trees", trees);
     build(load_input("gen:island", &params).expect("gen:island"))
 }
 
-/// Runs `work` on a pool of `threads` threads.
-fn on_threads<T: Send>(threads: usize, work: impl FnOnce() -> T + Send) -> T {
-    rayon::ThreadPoolBuilder::new()
-        .num_threads(threads)
-        .build()
-        .expect("thread pool")
-        .install(work)
-}
-
-#[test]
-fn the_file_is_the_same_on_any_thread_count() {
-    // The tree's tasks, the leaves' vertex ranges and the layout's task
-    // sizes all depend on the thread count; the bytes must not.
-    let (one, three) = (on_threads(1, island), on_threads(3, island));
-    assert!(one.header.nodes > 50_000, "{} nodes", one.header.nodes);
+/// Builds with `work` on 1 and on 3 threads, checks that the two files are
+/// the same (header, pages and where each vertex landed) and returns one.
+fn the_same_on_1_and_3_threads(work: impl Fn() -> PagedFile + Send + Sync) -> PagedFile {
+    let on = |threads| {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .expect("thread pool")
+            .install(&work)
+    };
+    let (one, three) = (on(1), on(3));
     assert!(
         one.header == three.header,
         "headers differ between 1 and 3 threads"
@@ -43,6 +45,15 @@ fn the_file_is_the_same_on_any_thread_count() {
         one.leaf_sources == three.leaf_sources,
         "vertices land in other nodes on 1 and 3 threads"
     );
+    one
+}
+
+#[test]
+fn the_file_is_the_same_on_any_thread_count() {
+    // The tree's tasks, the leaves' vertex ranges and the layout's task
+    // sizes all depend on the thread count; the bytes must not.
+    let one = the_same_on_1_and_3_threads(island);
+    assert!(one.header.nodes > 50_000, "{} nodes", one.header.nodes);
 }
 
 #[test]
@@ -50,13 +61,7 @@ fn levels_of_many_windows_are_the_same_on_any_thread_count() {
     // The layout quantizes a level in windows of 32 Ki parents and places
     // each while the next is quantized; on one thread the two take turns.
     // A terrain of 512 x 512 vertices has levels of more parents than that.
-    let terrain = || {
-        let mut params = Params::default();
-        params.set("size", 512);
-        params.set("trees", 0);
-        build(load_input("gen:island", &params).expect("gen:island"))
-    };
-    let (one, three) = (on_threads(1, terrain), on_threads(3, terrain));
+    let one = the_same_on_1_and_3_threads(|| island_of(512, 0));
     let mut parents_per_level = vec![0usize; one.header.levels as usize + 1];
     for node in resident(&one).decode_all() {
         if node.children > 0 {
@@ -65,15 +70,6 @@ fn levels_of_many_windows_are_the_same_on_any_thread_count() {
     }
     let widest = parents_per_level.iter().copied().max().unwrap_or(0);
     assert!(widest > 2 * 32 * 1024, "widest level has {widest} parents");
-    assert!(one.header == three.header, "headers differ");
-    assert!(
-        one.pages == three.pages,
-        "pages differ between 1 and 3 threads"
-    );
-    assert!(
-        one.leaf_sources == three.leaf_sources,
-        "leaf sources differ"
-    );
 }
 
 #[test]

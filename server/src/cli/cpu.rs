@@ -1,5 +1,5 @@
 //! What the machine gave a benchmark: the process's CPU time, and the
-//! share of the host's CPU time that the hypervisor took away ("steal").
+//! share of the machine's CPU time that the hypervisor took away ("steal").
 //!
 //! Build benchmarks run on shared virtual machines whose speed swings by
 //! tens of percent from one hour to the next. Reported beside a throughput,
