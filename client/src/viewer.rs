@@ -107,6 +107,16 @@ impl Viewer {
         self.hierarchy.as_ref().map(|h| &h.header)
     }
 
+    /// `what` went wrong, followed by the last connection or server error
+    /// when there was one: a client that gives up waiting should say
+    /// "connection refused", not only that it timed out.
+    pub fn with_last_error(&self, what: String) -> String {
+        match &self.stats.last_error {
+            Some(e) => format!("{what} (last error: {e})"),
+            None => what,
+        }
+    }
+
     /// Pages asked for and not yet arrived.
     pub fn outstanding(&self) -> usize {
         self.requested.len()

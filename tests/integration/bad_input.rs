@@ -32,6 +32,7 @@ fn assert_build_fails_cleanly(dir: &Path, input: &Path, expect: &[&str]) {
         assert!(message.contains(e), "error '{message}' lacks '{e}'");
     }
     assert!(!message.contains('\n'), "error is not one line: {message}");
+    assert_says_each_part_once(&message);
     assert!(!out.exists(), "half file left at {}", out.display());
     let leftovers: Vec<_> = std::fs::read_dir(dir)
         .unwrap()
@@ -41,10 +42,27 @@ fn assert_build_fails_cleanly(dir: &Path, input: &Path, expect: &[&str]) {
     assert!(leftovers.is_empty(), "temporary files left: {leftovers:?}");
 }
 
+/// An error chain whose cause is both printed by one error and returned as
+/// its `source` says the cause twice ("x: No such file: No such file").
+fn assert_says_each_part_once(message: &str) {
+    let parts: Vec<&str> = message.split(": ").collect();
+    for (i, part) in parts.iter().enumerate() {
+        assert!(
+            !parts[i + 1..].contains(part),
+            "error repeats '{part}': {message}"
+        );
+    }
+}
+
 #[test]
 fn missing_and_unknown_inputs() {
     let dir = scratch("missing");
-    assert_build_fails_cleanly(&dir, &dir.join("nope.obj"), &["nope.obj"]);
+    assert_build_fails_cleanly(&dir, &dir.join("nope.obj"), &["nope.obj", "No such file"]);
+    let missing_file = dir.join("nope.ff");
+    let err = cli(&["inspect", missing_file.to_str().unwrap(), "--json"]).unwrap_err();
+    let message = format!("{err:#}");
+    assert!(message.contains("nope.ff"), "{message}");
+    assert_says_each_part_once(&message);
     std::fs::write(dir.join("scene.xyz"), "1 2 3\n").unwrap();
     assert_build_fails_cleanly(
         &dir,

@@ -356,6 +356,35 @@ fn a_client_survives_a_server_restart_and_finishes_correctly() {
 }
 
 #[test]
+fn a_client_with_no_server_says_why_it_drew_nothing() {
+    let Some(mut renderer) = headless_or_skip(SIZE.0, SIZE.1).unwrap() else {
+        return;
+    };
+    // A port nobody listens on: bound, read, released.
+    let port = std::net::TcpListener::bind("127.0.0.1:0")
+        .and_then(|l| l.local_addr())
+        .unwrap()
+        .port();
+    let out = scratch("no-server").join("never.png");
+    let mut j = job(
+        Source::Server {
+            url: format!("http://127.0.0.1:{port}"),
+            scene: "island".into(),
+        },
+        camera(),
+    );
+    j.out = Some(out.clone());
+    j.timeout = Duration::from_secs(2);
+    let Err(err) = run(&j, &mut renderer, false) else {
+        panic!("no server, yet the render succeeded");
+    };
+    let message = format!("{err:#}");
+    assert!(message.contains("no scene header after"), "{message}");
+    assert!(message.to_lowercase().contains("refused"), "{message}");
+    assert!(!out.exists(), "an image was written");
+}
+
+#[test]
 fn the_demo_writes_frames_a_csv_and_a_summary() {
     use farfield_client::commands::demo::{DemoJob, run as demo};
     if headless_or_skip(8, 8).unwrap().is_none() {

@@ -123,7 +123,8 @@ fn header_of(viewer: &mut Viewer, timeout: Duration) -> anyhow::Result<FileHeade
         }
         anyhow::ensure!(
             started.elapsed() < timeout,
-            "no scene header after {timeout:?}"
+            "{}",
+            viewer.with_last_error(format!("no scene header after {timeout:?}"))
         );
         viewer.pump(Duration::from_millis(50))?;
     }

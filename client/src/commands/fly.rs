@@ -98,8 +98,8 @@ pub fn fly(
     while viewer.header().is_none() {
         anyhow::ensure!(
             started.elapsed() < job.timeout,
-            "no scene header after {:?}",
-            job.timeout
+            "{}",
+            viewer.with_last_error(format!("no scene header after {:?}", job.timeout))
         );
         viewer.pump(Duration::from_millis(100))?;
     }

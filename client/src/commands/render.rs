@@ -223,7 +223,12 @@ impl Settle {
         loop {
             let elapsed = self.started.elapsed();
             if elapsed > self.timeout {
-                self.error = Some(format!("not refined after {:.1} s", elapsed.as_secs_f64()));
+                let seconds = elapsed.as_secs_f64();
+                self.error = Some(viewer.with_last_error(if viewer.header().is_none() {
+                    format!("no scene header after {seconds:.1} s")
+                } else {
+                    format!("not refined after {seconds:.1} s")
+                }));
                 return Ok(());
             }
             viewer.pump(Duration::ZERO)?;

@@ -28,12 +28,16 @@ use crate::scene::{Primitives, Scene};
 
 /// Why an input could not become a scene. Every message names the input and,
 /// where there is one, the element (line, vertex, face) that is wrong.
+///
+/// A cause is kept in a field named `error`, not `source`: the message
+/// already prints it, and as a `source` the command line's error chain would
+/// print it a second time.
 #[derive(Debug, thiserror::Error)]
 pub enum ImportError {
-    #[error("{path}: {source}")]
+    #[error("{path}: {error}")]
     Io {
         path: PathBuf,
-        source: std::io::Error,
+        error: std::io::Error,
     },
     #[error(
         "{path}: unknown input format '{extension}' (expected .obj, .ply, .off, .las, .laz, .pdb or gen:NAME)"
@@ -61,10 +65,10 @@ impl ImportError {
         }
     }
 
-    pub fn io(path: &Path, source: std::io::Error) -> Self {
+    pub fn io(path: &Path, error: std::io::Error) -> Self {
         Self::Io {
             path: path.to_owned(),
-            source,
+            error,
         }
     }
 }

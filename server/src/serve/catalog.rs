@@ -180,9 +180,9 @@ impl Catalog {
 
 /// The `*.ff` files directly in `dir`, named by file stem, sorted by name.
 pub fn scan_dir(dir: &Path) -> Result<Vec<(String, PathBuf)>, ServeError> {
-    let io = |source| ServeError::ScenesDir {
+    let io = |error| ServeError::ScenesDir {
         path: dir.to_owned(),
-        source,
+        error,
     };
     let mut out = Vec::new();
     for entry in std::fs::read_dir(dir).map_err(io)? {

@@ -45,20 +45,21 @@ pub const DEFAULT_CACHE_BYTES: u64 = 256 << 20;
 /// How long [`RunningServer::shutdown`] waits for open sessions to close.
 pub const SHUTDOWN_GRACE: Duration = Duration::from_secs(5);
 
-/// Why the server could not start or stop cleanly.
+/// Why the server could not start or stop cleanly. Causes are fields named
+/// `error`, printed in the message (as in [`crate::import::ImportError`]).
 #[derive(Debug, thiserror::Error)]
 pub enum ServeError {
-    #[error("scenes folder {path}: {source}")]
+    #[error("scenes folder {path}: {error}")]
     ScenesDir {
         path: PathBuf,
-        source: std::io::Error,
+        error: std::io::Error,
     },
     #[error("two scenes are named {0:?}")]
     DuplicateScene(String),
-    #[error("cannot listen on {addr}: {source}")]
+    #[error("cannot listen on {addr}: {error}")]
     Bind {
         addr: SocketAddr,
-        source: std::io::Error,
+        error: std::io::Error,
     },
     #[error("cannot start the prefetch threads: {0}")]
     Threads(std::io::Error),
@@ -157,13 +158,13 @@ pub async fn start_scenes(
     });
     let listener = tokio::net::TcpListener::bind(listen)
         .await
-        .map_err(|source| ServeError::Bind {
+        .map_err(|error| ServeError::Bind {
             addr: listen,
-            source,
+            error,
         })?;
-    let local_addr = listener.local_addr().map_err(|source| ServeError::Bind {
+    let local_addr = listener.local_addr().map_err(|error| ServeError::Bind {
         addr: listen,
-        source,
+        error,
     })?;
     let app = routes::router(state.clone());
     let mut signal = shutdown_rx;

@@ -16,23 +16,24 @@ use memmap2::Mmap;
 
 use crate::build::PagedFile;
 
-/// Why a file could not be written or read.
+/// Why a file could not be written or read. The cause is a field named
+/// `error`, printed in the message (as in [`crate::import::ImportError`]).
 #[derive(Debug, thiserror::Error)]
 pub enum StoreError {
-    #[error("{path}: {source}")]
+    #[error("{path}: {error}")]
     Io {
         path: PathBuf,
-        source: std::io::Error,
+        error: std::io::Error,
     },
-    #[error("{path}: {source}")]
-    Format { path: PathBuf, source: FormatError },
+    #[error("{path}: {error}")]
+    Format { path: PathBuf, error: FormatError },
 }
 
 /// Writes `file` to `path` through a temporary file and a rename.
 pub fn write_atomic(path: &Path, file: &PagedFile) -> Result<u64, StoreError> {
-    let io = |source| StoreError::Io {
+    let io = |error| StoreError::Io {
         path: path.to_owned(),
-        source,
+        error,
     };
     let dir = path
         .parent()
@@ -76,9 +77,9 @@ pub struct SceneFile {
 impl SceneFile {
     /// Maps `path` and parses its header (pages are verified on use).
     pub fn open(path: &Path) -> Result<Self, StoreError> {
-        let file = File::open(path).map_err(|source| StoreError::Io {
+        let file = File::open(path).map_err(|error| StoreError::Io {
             path: path.to_owned(),
-            source,
+            error,
         })?;
         // SAFETY: the map is read-only and farfield never writes a file in
         // place (builds write a new file and rename it over the old one), so
@@ -86,13 +87,13 @@ impl SceneFile {
         // truncates the file anyway, reads past the new end raise SIGBUS; that
         // is the documented hazard of memory maps and not something a reader
         // can guard against without giving up the map.
-        let map = unsafe { Mmap::map(&file) }.map_err(|source| StoreError::Io {
+        let map = unsafe { Mmap::map(&file) }.map_err(|error| StoreError::Io {
             path: path.to_owned(),
-            source,
+            error,
         })?;
-        let header = FileHeader::decode(&map).map_err(|source| StoreError::Format {
+        let header = FileHeader::decode(&map).map_err(|error| StoreError::Format {
             path: path.to_owned(),
-            source,
+            error,
         })?;
         let scene = Self {
             path: path.to_owned(),
@@ -102,7 +103,7 @@ impl SceneFile {
         if scene.header.file_len() > scene.map.len() as u64 {
             return Err(StoreError::Format {
                 path: path.to_owned(),
-                source: FormatError::Truncated {
+                error: FormatError::Truncated {
                     what: "file",
                     needed: scene.header.file_len(),
                     have: scene.map.len() as u64,
