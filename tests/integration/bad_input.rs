@@ -34,6 +34,10 @@ fn assert_build_fails_cleanly(dir: &Path, input: &Path, expect: &[&str]) {
     assert!(!message.contains('\n'), "error is not one line: {message}");
     assert_says_each_part_once(&message);
     assert!(!out.exists(), "half file left at {}", out.display());
+    assert_no_temporary_files(dir);
+}
+
+fn assert_no_temporary_files(dir: &Path) {
     let leftovers: Vec<_> = std::fs::read_dir(dir)
         .unwrap()
         .filter_map(Result::ok)
@@ -69,6 +73,42 @@ fn missing_and_unknown_inputs() {
         &dir.join("scene.xyz"),
         &["scene.xyz", "unknown input format"],
     );
+}
+
+#[test]
+fn an_unwritable_output_fails_before_the_import() {
+    let dir = scratch("unwritable");
+    let input = dir.join("tri.obj");
+    std::fs::write(&input, "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n").unwrap();
+    let build_to = |out: &Path| {
+        let err = cli(&[
+            "build",
+            input.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+        ])
+        .unwrap_err();
+        format!("{err:#}")
+    };
+    let message = build_to(&dir.join("no-such-folder").join("out.ff"));
+    assert!(message.contains("no-such-folder"), "{message}");
+    assert_says_each_part_once(&message);
+    let message = build_to(&dir);
+    assert!(message.contains("is a folder"), "{message}");
+    // Checked first: a missing input is not even opened.
+    let err = cli(&[
+        "build",
+        dir.join("missing.obj").to_str().unwrap(),
+        "--out",
+        dir.join("no-such-folder/out.ff").to_str().unwrap(),
+    ])
+    .unwrap_err();
+    let message = format!("{err:#}");
+    assert!(
+        message.contains("no-such-folder") && !message.contains("missing.obj"),
+        "{message}"
+    );
+    assert_no_temporary_files(&dir);
 }
 
 #[test]

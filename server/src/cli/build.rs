@@ -12,10 +12,11 @@ use crate::build::cubes::{CubeOptions, build_cubes};
 use crate::build::{BuildOptions, build_spheres};
 use crate::import::{Params, load_input};
 use crate::scene::Scene;
-use crate::store::write_atomic;
+use crate::store::{check_target, write_atomic};
 
 pub fn run(args: &BuildArgs) -> anyhow::Result<Report> {
     let params = Params::parse(&args.params).map_err(anyhow::Error::msg)?;
+    check_target(&args.out)?;
     let progress = if args.json || !std::io::stderr().is_terminal() {
         ProgressBar::hidden()
     } else {

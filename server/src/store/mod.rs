@@ -29,24 +29,47 @@ pub enum StoreError {
     Format { path: PathBuf, error: FormatError },
 }
 
+/// Checks, before a long build, that `path` can be written: its folder
+/// exists and takes a new file (one is created and removed), and `path` is
+/// not a folder. A build that could only fail at its end should fail first.
+pub fn check_target(path: &Path) -> Result<(), StoreError> {
+    let io = |error| StoreError::Io {
+        path: path.to_owned(),
+        error,
+    };
+    if path.is_dir() {
+        return Err(io(std::io::Error::other("is a folder, not a file")));
+    }
+    let tmp = temp_path(path)?;
+    File::create(&tmp).map_err(io)?;
+    std::fs::remove_file(&tmp).map_err(io)
+}
+
+/// The temporary file a write of `path` goes through: hidden, next to
+/// `path` (so the rename stays on one file system), named by process.
+fn temp_path(path: &Path) -> Result<PathBuf, StoreError> {
+    let dir = path
+        .parent()
+        .filter(|p| !p.as_os_str().is_empty())
+        .unwrap_or(Path::new("."));
+    let name = path.file_name().ok_or_else(|| StoreError::Io {
+        path: path.to_owned(),
+        error: std::io::Error::other("no file name"),
+    })?;
+    Ok(dir.join(format!(
+        ".{}.tmp-{}",
+        name.to_string_lossy(),
+        std::process::id()
+    )))
+}
+
 /// Writes `file` to `path` through a temporary file and a rename.
 pub fn write_atomic(path: &Path, file: &PagedFile) -> Result<u64, StoreError> {
     let io = |error| StoreError::Io {
         path: path.to_owned(),
         error,
     };
-    let dir = path
-        .parent()
-        .filter(|p| !p.as_os_str().is_empty())
-        .unwrap_or(Path::new("."));
-    let name = path
-        .file_name()
-        .ok_or_else(|| io(std::io::Error::other("no file name")))?;
-    let tmp = dir.join(format!(
-        ".{}.tmp-{}",
-        name.to_string_lossy(),
-        std::process::id()
-    ));
+    let tmp = temp_path(path)?;
     let result = (|| -> std::io::Result<u64> {
         let mut out = BufWriter::new(File::create(&tmp)?);
         let header = file.header.encode();
