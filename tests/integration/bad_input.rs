@@ -17,9 +17,8 @@ fn error_of(input: &Path) -> String {
     }
 }
 
-/// A failed build writes nothing at the target and leaves no temporary file.
-fn assert_build_fails_cleanly(dir: &Path, input: &Path, expect: &[&str]) {
-    let out = dir.join("out.ff");
+/// The one-line error of `build INPUT --out OUT`, which must fail.
+fn build_error(input: &Path, out: &Path) -> String {
     let err = cli(&[
         "build",
         input.to_str().unwrap(),
@@ -27,7 +26,13 @@ fn assert_build_fails_cleanly(dir: &Path, input: &Path, expect: &[&str]) {
         out.to_str().unwrap(),
     ])
     .unwrap_err();
-    let message = format!("{err:#}");
+    format!("{err:#}")
+}
+
+/// A failed build writes nothing at the target and leaves no temporary file.
+fn assert_build_fails_cleanly(dir: &Path, input: &Path, expect: &[&str]) {
+    let out = dir.join("out.ff");
+    let message = build_error(input, &out);
     for e in expect {
         assert!(message.contains(e), "error '{message}' lacks '{e}'");
     }
@@ -80,30 +85,16 @@ fn an_unwritable_output_fails_before_the_import() {
     let dir = scratch("unwritable");
     let input = dir.join("tri.obj");
     std::fs::write(&input, "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n").unwrap();
-    let build_to = |out: &Path| {
-        let err = cli(&[
-            "build",
-            input.to_str().unwrap(),
-            "--out",
-            out.to_str().unwrap(),
-        ])
-        .unwrap_err();
-        format!("{err:#}")
-    };
-    let message = build_to(&dir.join("no-such-folder").join("out.ff"));
+    let message = build_error(&input, &dir.join("no-such-folder").join("out.ff"));
     assert!(message.contains("no-such-folder"), "{message}");
     assert_says_each_part_once(&message);
-    let message = build_to(&dir);
+    let message = build_error(&input, &dir);
     assert!(message.contains("is a folder"), "{message}");
     // Checked first: a missing input is not even opened.
-    let err = cli(&[
-        "build",
-        dir.join("missing.obj").to_str().unwrap(),
-        "--out",
-        dir.join("no-such-folder/out.ff").to_str().unwrap(),
-    ])
-    .unwrap_err();
-    let message = format!("{err:#}");
+    let message = build_error(
+        &dir.join("missing.obj"),
+        &dir.join("no-such-folder").join("out.ff"),
+    );
     assert!(
         message.contains("no-such-folder") && !message.contains("missing.obj"),
         "{message}"
