@@ -385,6 +385,29 @@ fn a_client_with_no_server_says_why_it_drew_nothing() {
 }
 
 #[test]
+fn an_unknown_scene_ends_the_session_at_once_with_the_servers_reason() {
+    let rt = runtime();
+    let server = serve(&rt, &scratch("unknown-scene"), 0);
+    let url = format!("http://{}", server.local_addr());
+    let mut viewer = Viewer::open_remote(&url, "nosuch", SessionOptions::default(), 1 << 20)
+        .expect("the session starts");
+    let started = Instant::now();
+    let err = loop {
+        if let Err(e) = viewer.pump(Duration::from_millis(50)) {
+            break e;
+        }
+        // Retrying a 404 with backoff would run past this.
+        assert!(
+            started.elapsed() < Duration::from_secs(10),
+            "the client kept retrying an unknown scene"
+        );
+    };
+    let message = format!("{err:#}");
+    assert!(message.contains(r#"no scene named "nosuch""#), "{message}");
+    rt.block_on(server.shutdown()).unwrap();
+}
+
+#[test]
 fn the_demo_writes_frames_a_csv_and_a_summary() {
     use farfield_client::commands::demo::{DemoJob, run as demo};
     if headless_or_skip(8, 8).unwrap().is_none() {

@@ -3,8 +3,9 @@
 //! [`Connection::open`] starts a background task on a tokio runtime that
 //! connects, says hello, and forwards what arrives as [`NetEvent`]s; the
 //! renderer's loop sends [`Outgoing`] wishes back. When the server goes away
-//! the task reports [`NetEvent::Disconnected`] and reconnects with backoff;
-//! after [`NetEvent::Connected`] the loop asks again for whatever it still
+//! the task reports [`NetEvent::Disconnected`] and reconnects with backoff
+//! (but a refusal, such as an unknown scene's 404, ends the session with the
+//! server's reason, since retrying cannot change it); after [`NetEvent::Connected`] the loop asks again for whatever it still
 //! lacks, so nothing it already holds is fetched twice.
 
 use std::time::Duration;
@@ -144,6 +145,24 @@ async fn run(
     }
 }
 
+/// The server's reason when it refused the connection with a client error
+/// (4xx): its JSON `error` field when there is one, else the status line.
+fn refusal(url: &str, error: &tokio_tungstenite::tungstenite::Error) -> Option<String> {
+    let tokio_tungstenite::tungstenite::Error::Http(response) = error else {
+        return None;
+    };
+    if !response.status().is_client_error() {
+        return None;
+    }
+    let reason = response
+        .body()
+        .as_deref()
+        .and_then(|body| serde_json::from_slice::<serde_json::Value>(body).ok())
+        .and_then(|json| json.get("error")?.as_str().map(str::to_owned))
+        .unwrap_or_else(|| response.status().to_string());
+    Some(format!("{url}: {reason}"))
+}
+
 enum SessionEnd {
     ReceiverGone,
     Fatal,
@@ -158,9 +177,21 @@ async fn session(
 ) -> Result<SessionEnd, String> {
     // No Nagle: requests and acknowledgements are small and must not sit
     // waiting for the server's delayed ACKs (40 ms a round trip otherwise).
-    let (socket, _) = tokio_tungstenite::connect_async_with_config(url, None, true)
-        .await
-        .map_err(|e| format!("connect {url}: {e}"))?;
+    let socket = match tokio_tungstenite::connect_async_with_config(url, None, true).await {
+        Ok((socket, _)) => socket,
+        Err(e) => {
+            // A 4xx answer (an unknown scene) will not change on retry:
+            // end the session with the server's reason instead of waiting.
+            if let Some(message) = refusal(url, &e) {
+                let _ = events.send(NetEvent::ServerError {
+                    message,
+                    fatal: true,
+                });
+                return Ok(SessionEnd::Fatal);
+            }
+            return Err(format!("connect {url}: {e}"));
+        }
+    };
     let (mut sink, mut stream) = socket.split();
     let hello = ClientMessage::Hello {
         protocol_version: PROTOCOL_VERSION,
