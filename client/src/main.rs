@@ -321,6 +321,14 @@ fn render(args: RenderArgs) -> anyhow::Result<()> {
             r.adapter
         );
     }
+    if !r.pages_failed.is_empty() {
+        anyhow::bail!(
+            "drawn without {} page(s) {:?}, whose parts are coarser: {}",
+            r.pages_failed.len(),
+            r.pages_failed,
+            r.last_error.as_deref().unwrap_or("corrupt")
+        );
+    }
     if !r.refined && until == Until::Refined {
         anyhow::bail!(
             "{}",

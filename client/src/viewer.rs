@@ -33,6 +33,8 @@ pub struct NetStats {
     pub pages_requested: u64,
     pub pages_cancelled: u64,
     pub pages_rejected: u64,
+    /// Pages the server said it cannot send (corrupt on its disk).
+    pub pages_unavailable: u64,
     pub disconnects: u64,
     /// Reported through the render report's own `last_error`.
     #[serde(skip)]
@@ -168,6 +170,14 @@ impl Viewer {
                     if fatal {
                         bail!("server: {message}");
                     }
+                }
+                NetEvent::PageUnavailable { page, reason } => {
+                    tracing::warn!("page {page} unavailable: {reason}");
+                    self.stats.pages_unavailable += 1;
+                    self.stats.last_error = Some(reason);
+                    self.requested.remove(&page);
+                    // Given up at once: the server's copy will not heal.
+                    self.failures.insert(page, MAX_PAGE_FAILURES);
                 }
                 NetEvent::Disconnected { reason } => {
                     if self.connected {

@@ -21,12 +21,15 @@
 //!    sent but the client has not acknowledged ([`ClientMessage::Received`])
 //!    stay under the client's `max_in_flight_bytes`; when nothing is asked
 //!    for, it may push pages it predicts the client will want (children of
-//!    what it asked for), if the client allowed pushes in its hello.
+//!    what it asked for), if the client allowed pushes in its hello. A page
+//!    the server cannot send (it fails its checksum on the server's disk)
+//!    is answered with [`ServerMessage::PageUnavailable`] instead, so the
+//!    client stops waiting for it.
 
 use serde::{Deserialize, Serialize};
 
 /// Bumped whenever a message changes shape.
-pub const PROTOCOL_VERSION: u32 = 1;
+pub const PROTOCOL_VERSION: u32 = 2;
 
 /// The first byte of every binary frame.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -78,4 +81,9 @@ pub enum ServerMessage {
     },
     /// Something went wrong; `fatal` errors are followed by a close.
     Error { message: String, fatal: bool },
+    /// A requested page that cannot be sent, and why: its bytes on the
+    /// server are corrupt (or unreadable). Asking again will not help, so a
+    /// client draws that part of the tree from coarser pages and stops
+    /// waiting for it.
+    PageUnavailable { page: u32, reason: String },
 }

@@ -711,9 +711,9 @@ async fn a_corrupt_page_is_reported_and_never_sent() {
     let mut got_one = false;
     while !(reported && got_one) {
         match c.recv().await {
-            In::Control(ServerMessage::Error { message, fatal }) => {
-                assert!(!fatal);
-                assert!(message.contains("page 2"), "{message}");
+            In::Control(ServerMessage::PageUnavailable { page, reason }) => {
+                assert_eq!(page, 2);
+                assert!(reason.contains("page 2"), "{reason}");
                 reported = true;
             }
             In::Page(1, b) => {

@@ -13,6 +13,7 @@ use farfield_client::eval::compare;
 use farfield_client::net::SessionOptions;
 use farfield_client::render::{Kernel, Renderer, SplatStyle, headless_or_skip};
 use farfield_client::viewer::Viewer;
+use farfield_protocol::file::FileHeader;
 use farfield_server::import::{Params, load_input};
 use farfield_server::serve::{RunningServer, ServerConfig, start};
 use farfield_server::store::write_atomic;
@@ -404,6 +405,42 @@ fn an_unknown_scene_ends_the_session_at_once_with_the_servers_reason() {
     };
     let message = format!("{err:#}");
     assert!(message.contains(r#"no scene named "nosuch""#), "{message}");
+    rt.block_on(server.shutdown()).unwrap();
+}
+
+#[test]
+fn a_page_corrupt_on_the_server_is_given_up_and_the_rest_refines() {
+    let Some(mut renderer) = headless_or_skip(SIZE.0, SIZE.1).unwrap() else {
+        return;
+    };
+    let (dir, _) = scenes("corrupt-on-server");
+    let path = dir.join("island.ff");
+    let mut bytes = std::fs::read(&path).unwrap();
+    let header = FileHeader::decode(&bytes).unwrap();
+    assert!(header.pages.len() > 2, "the scene needs pages below page 0");
+    bytes[header.pages[1].offset as usize + 40] ^= 0x10;
+    std::fs::write(&path, &bytes).unwrap();
+    let rt = runtime();
+    let server = serve(&rt, &dir, 0);
+    let j = job(
+        Source::Server {
+            url: format!("http://{}", server.local_addr()),
+            scene: "island".into(),
+        },
+        camera(),
+    );
+    let started = Instant::now();
+    let r = run(&j, &mut renderer, false).expect("render");
+    // Waiting for a page that never comes would run to the 60 s timeout.
+    assert!(
+        started.elapsed() < Duration::from_secs(30),
+        "waited {:?} for a page the server cannot send",
+        started.elapsed()
+    );
+    assert!(r.report.refined, "{:?}", r.report.last_error);
+    assert_eq!(r.report.pages_failed, vec![1]);
+    assert!(r.report.net.pages_unavailable >= 1);
+    assert!(r.report.nodes_drawn > 0);
     rt.block_on(server.shutdown()).unwrap();
 }
 

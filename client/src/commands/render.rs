@@ -84,6 +84,9 @@ pub struct RenderReport {
     pub last_upload_ms: f64,
     pub last_draw_ms: f64,
     pub last_error: Option<String>,
+    /// Pages given up on (corrupt on the server, or failing their checksum
+    /// on arrival too often): their parts are drawn from coarser pages.
+    pub pages_failed: Vec<u32>,
 }
 
 /// A finished render: the report and the last image.
@@ -328,6 +331,11 @@ impl Settle {
             last_upload_ms: self.last.upload_ms,
             last_draw_ms: self.last.draw_ms,
             last_error: self.error.clone().or(stats.last_error.clone()),
+            pages_failed: {
+                let mut failed = viewer.failed_pages();
+                failed.sort_unstable();
+                failed
+            },
         }
     }
 }

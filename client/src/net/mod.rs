@@ -45,6 +45,8 @@ pub enum NetEvent {
     ServerError { message: String, fatal: bool },
     /// The connection dropped (or could not be made); the task retries.
     Disconnected { reason: String },
+    /// The server cannot send this page (corrupt on its disk).
+    PageUnavailable { page: u32, reason: String },
 }
 
 /// What the render loop asks the network task to send.
@@ -267,6 +269,9 @@ fn decode(frame: &[u8]) -> Result<Option<NetEvent>, CodecError> {
         }),
         ServerMessage::Hello { .. } => None,
         ServerMessage::Error { message, fatal } => Some(NetEvent::ServerError { message, fatal }),
+        ServerMessage::PageUnavailable { page, reason } => {
+            Some(NetEvent::PageUnavailable { page, reason })
+        }
     })
 }
 

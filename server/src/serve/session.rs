@@ -580,10 +580,10 @@ async fn write_loop(
                         st.schedule.unsend(next.page);
                         st.stats.corrupt += 1;
                         drop(st);
-                        Bytes::from(encode_control(&error(
-                            format!("scene {:?}: {e}", scene.name),
-                            false,
-                        )))
+                        Bytes::from(encode_control(&ServerMessage::PageUnavailable {
+                            page: next.page,
+                            reason: format!("scene {:?}: {e}", scene.name),
+                        }))
                     }
                 }
             }
