@@ -3,10 +3,11 @@
 //! [`Connection::open`] starts a background task on a tokio runtime that
 //! connects, says hello, and forwards what arrives as [`NetEvent`]s; the
 //! renderer's loop sends [`Outgoing`] wishes back. When the server goes away
-//! the task reports [`NetEvent::Disconnected`] and reconnects with backoff
-//! (but a refusal, such as an unknown scene's 404, ends the session with the
-//! server's reason, since retrying cannot change it); after [`NetEvent::Connected`] the loop asks again for whatever it still
-//! lacks, so nothing it already holds is fetched twice.
+//! the task reports [`NetEvent::Disconnected`] and reconnects with backoff;
+//! after [`NetEvent::Connected`] the loop asks again for whatever it still
+//! lacks, so nothing it already holds is fetched twice. A refusal (an
+//! unknown scene's 404) ends the session with the server's reason instead,
+//! since retrying cannot change it.
 
 use std::time::Duration;
 
