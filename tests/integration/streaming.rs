@@ -375,12 +375,30 @@ fn a_client_with_no_server_says_why_it_drew_nothing() {
         camera(),
     );
     j.out = Some(out.clone());
+    // A render timeout inside the first-connection grace: the timeout ends
+    // it, and says what the connection attempts met.
     j.timeout = Duration::from_secs(2);
     let Err(err) = run(&j, &mut renderer, false) else {
         panic!("no server, yet the render succeeded");
     };
     let message = format!("{err:#}");
     assert!(message.contains("no scene header after"), "{message}");
+    assert!(message.to_lowercase().contains("refused"), "{message}");
+    assert!(!out.exists(), "an image was written");
+    // A grace shorter than the timeout: the session gives up first.
+    j.timeout = Duration::from_secs(60);
+    j.session.first_connect_grace = Duration::from_secs(1);
+    let started = Instant::now();
+    let Err(err) = run(&j, &mut renderer, false) else {
+        panic!("no server, yet the render succeeded");
+    };
+    let message = format!("{err:#}");
+    assert!(
+        started.elapsed() < Duration::from_secs(20),
+        "gave up only after {:?}: {message}",
+        started.elapsed()
+    );
+    assert!(message.contains("cannot reach the server"), "{message}");
     assert!(message.to_lowercase().contains("refused"), "{message}");
     assert!(!out.exists(), "an image was written");
 }

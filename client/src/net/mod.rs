@@ -7,7 +7,8 @@
 //! after [`NetEvent::Connected`] the loop asks again for whatever it still
 //! lacks, so nothing it already holds is fetched twice. A refusal (an
 //! unknown scene's 404) ends the session with the server's reason instead,
-//! since retrying cannot change it.
+//! since retrying cannot change it, and so does a server that could not be
+//! reached at all within [`SessionOptions::first_connect_grace`].
 
 use std::time::Duration;
 
@@ -19,11 +20,16 @@ use futures_util::{SinkExt, StreamExt};
 use tokio::sync::mpsc;
 use tokio_tungstenite::tungstenite::Message;
 
-/// Options a client announces in its hello.
+/// Options a client announces in its hello, and how long it tries.
 #[derive(Debug, Clone, Copy)]
 pub struct SessionOptions {
     pub max_in_flight_bytes: u64,
     pub allow_push: bool,
+    /// How long a session that has never connected keeps trying: a wrong
+    /// address or a server that is not running should fail in seconds, not
+    /// at the render's timeout. Once connected, a session retries for as
+    /// long as its owner waits (servers restart).
+    pub first_connect_grace: Duration,
 }
 
 impl Default for SessionOptions {
@@ -31,6 +37,7 @@ impl Default for SessionOptions {
         Self {
             max_in_flight_bytes: 4 << 20,
             allow_push: false,
+            first_connect_grace: Duration::from_secs(10),
         }
     }
 }
@@ -119,7 +126,8 @@ pub fn stream_url(server: &str, scene: &str) -> String {
 }
 
 /// Connects, serves one session, and reconnects with backoff until the
-/// receiver goes away or the server says something fatal.
+/// receiver goes away, the server says something fatal, or a session that
+/// never connected has tried for its `first_connect_grace`.
 async fn run(
     url: String,
     options: SessionOptions,
@@ -127,8 +135,11 @@ async fn run(
     mut outgoing: mpsc::UnboundedReceiver<Outgoing>,
 ) {
     let mut backoff = Duration::from_millis(50);
+    let started = tokio::time::Instant::now();
+    let mut connected_once = false;
     loop {
-        let reason = match session(&url, options, &events, &mut outgoing).await {
+        let reason = match session(&url, options, &events, &mut outgoing, &mut connected_once).await
+        {
             Ok(SessionEnd::ReceiverGone) => return,
             Ok(SessionEnd::Fatal) => return,
             Ok(SessionEnd::Closed(reason)) => {
@@ -137,6 +148,16 @@ async fn run(
             }
             Err(reason) => reason,
         };
+        if !connected_once && started.elapsed() >= options.first_connect_grace {
+            let _ = events.send(NetEvent::ServerError {
+                message: format!(
+                    "cannot reach the server after {:.0} s of trying: {reason}",
+                    options.first_connect_grace.as_secs_f64()
+                ),
+                fatal: true,
+            });
+            return;
+        }
         if events.send(NetEvent::Disconnected { reason }).is_err() {
             return;
         }
@@ -177,6 +198,7 @@ async fn session(
     options: SessionOptions,
     events: &mpsc::UnboundedSender<NetEvent>,
     outgoing: &mut mpsc::UnboundedReceiver<Outgoing>,
+    connected_once: &mut bool,
 ) -> Result<SessionEnd, String> {
     // No Nagle: requests and acknowledgements are small and must not sit
     // waiting for the server's delayed ACKs (40 ms a round trip otherwise).
@@ -195,6 +217,7 @@ async fn session(
             return Err(format!("connect {url}: {e}"));
         }
     };
+    *connected_once = true;
     let (mut sink, mut stream) = socket.split();
     let hello = ClientMessage::Hello {
         protocol_version: PROTOCOL_VERSION,
