@@ -7,6 +7,7 @@ mod cubes;
 mod extremes;
 mod holes;
 mod layout;
+mod progress;
 mod real_data;
 mod serve;
 mod streaming;

@@ -15,6 +15,7 @@ use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 
 use super::leaves::{Leaf, cone_from_u8, unpack_normal};
+use super::progress::Progress;
 use super::tree::{NodeRef, SharedNodes, Tree};
 
 /// A finished file: header and page bytes, ready to be written.
@@ -39,9 +40,13 @@ pub struct LayoutInput {
 }
 
 /// Quantizes the tree and cuts it into pages.
-pub fn lay_out(tree: Tree, input: LayoutInput) -> PagedFile {
+/// `progress` counts the nodes placed in pages.
+pub fn lay_out(tree: Tree, input: LayoutInput, progress: &dyn Progress) -> PagedFile {
     let node_bytes = input.layout.bytes() as usize;
     let mut pages = PageCutter::new(input.page_bytes, node_bytes);
+    // Every node is placed once: the interior ones and the leaves the tree
+    // references (a collapsed duplicate stays in the list, unreferenced).
+    let total_nodes = (tree.interior.len() + tree.leaves.len()) as u64 - tree.collapsed_duplicates;
     let Tree {
         leaves: leaf_list,
         mut interior,
@@ -82,6 +87,9 @@ pub fn lay_out(tree: Tree, input: LayoutInput) -> PagedFile {
     pages.add_group(0, &root_bytes[..node_bytes], next_child);
     next_child += root_record.children.get() as u64;
     nodes += 1;
+    progress.begin("layout", total_nodes);
+    progress.advance(1);
+    let mut nodes_reported = 1;
     let mut windows = Windows::default();
     match root.get() {
         Err(node) => windows.next.push(vec![node as u32]),
@@ -125,6 +133,8 @@ pub fn lay_out(tree: Tree, input: LayoutInput) -> PagedFile {
             }
             leaves += placed.leaves;
         }
+        progress.advance(nodes - nodes_reported);
+        nodes_reported = nodes;
     };
     let mut pending = None;
     loop {

@@ -20,6 +20,7 @@ use rayon::prelude::*;
 
 pub use farfield_protocol::octahedral::{pack_normal, unpack_normal};
 
+use super::progress::Progress;
 use crate::scene::{Geometry, Primitives, Rgb8, Scene};
 
 /// Color given to geometry without colors in a scene where others have them.
@@ -49,8 +50,13 @@ pub struct LeafStats {
     pub unreferenced_vertices: u64,
 }
 
-/// Turns a scene into leaves, consuming it geometry by geometry.
-pub fn make_leaves(scene: Scene, has_color: bool) -> (Vec<Leaf>, LeafStats) {
+/// Turns a scene into leaves, consuming it geometry by geometry (the unit
+/// of its `progress`, in vertices).
+pub fn make_leaves(
+    scene: Scene,
+    has_color: bool,
+    progress: &dyn Progress,
+) -> (Vec<Leaf>, LeafStats) {
     let Scene {
         geometries,
         instances,
@@ -63,6 +69,7 @@ pub fn make_leaves(scene: Scene, has_color: bool) -> (Vec<Leaf>, LeafStats) {
         input_vertices: total,
         unreferenced_vertices: 0,
     };
+    progress.begin("leaves", total);
     // One geometry placed as it is (any scanned mesh): its leaves are the
     // result, with no copy into a second array of the same size.
     let mut geometries = geometries;
@@ -73,6 +80,7 @@ pub fn make_leaves(scene: Scene, has_color: bool) -> (Vec<Leaf>, LeafStats) {
     {
         let (local, unreferenced) = local_leaves(geometry, has_color);
         stats.unreferenced_vertices = unreferenced;
+        progress.advance(total);
         return (local, stats);
     }
     let mut leaves = Vec::with_capacity(total as usize);
@@ -84,17 +92,20 @@ pub fn make_leaves(scene: Scene, has_color: bool) -> (Vec<Leaf>, LeafStats) {
         if transforms.is_empty() {
             continue;
         }
+        let vertices = geometry.positions.len() as u64 * transforms.len() as u64;
         let (local, unreferenced) = local_leaves(geometry, has_color);
         stats.unreferenced_vertices += unreferenced * transforms.len() as u64;
         if let [only] = transforms[..]
             && only == DAffine3::IDENTITY
         {
             leaves.extend_from_slice(&local);
+            progress.advance(vertices);
             continue;
         }
         // Instances are independent: place them on all threads, each into
         // its own slice of the output (no intermediate copies).
         let Some(&filler) = local.first() else {
+            progress.advance(vertices);
             continue;
         };
         let start = leaves.len();
@@ -103,6 +114,7 @@ pub fn make_leaves(scene: Scene, has_color: bool) -> (Vec<Leaf>, LeafStats) {
             .par_chunks_mut(local.len())
             .zip(transforms.par_iter())
             .for_each(|(out, &world_from_local)| place(&local, world_from_local, out));
+        progress.advance(vertices);
     }
     (leaves, stats)
 }
@@ -476,6 +488,7 @@ pub fn cone_from_u8(cone: u8) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::build::progress::Silent;
 
     #[test]
     fn triangle_radius_covers_every_corner() {
@@ -538,7 +551,7 @@ mod tests {
     fn unused_vertices_are_dropped_and_used_ones_sized() {
         let positions = vec![DVec3::ZERO, DVec3::X, DVec3::Y, DVec3::splat(5.0)];
         let g = Geometry::new("t", positions, Primitives::Triangles(vec![[0, 1, 2]]));
-        let (leaves, stats) = make_leaves(Scene::single(g), false);
+        let (leaves, stats) = make_leaves(Scene::single(g), false, &Silent);
         assert_eq!(stats.unreferenced_vertices, 1);
         assert_eq!(leaves.len(), 3);
         assert!(leaves.iter().all(|l| l.radius >= 0.5 && l.cone < 255));

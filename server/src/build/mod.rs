@@ -5,12 +5,14 @@
 //! [`leaves`] (a sized, oriented sphere per vertex; [`knn`] for point
 //! clouds), [`tree`] (bisection into a 2-to-4-ary bounding-sphere tree),
 //! [`layout`] (top-down quantization and breadth-first pages). Writing the
-//! file is the [`store`](crate::store)'s job.
+//! file is the [`store`](crate::store)'s job. Each step reports how far it
+//! has got through [`Progress`].
 
 pub mod cubes;
 pub mod knn;
 pub mod layout;
 pub mod leaves;
+pub mod progress;
 pub mod tree;
 
 use std::time::Instant;
@@ -18,6 +20,7 @@ use std::time::Instant;
 use farfield_protocol::sphere_codec::NodeLayout;
 use glam::DVec3;
 pub use layout::PagedFile;
+pub use progress::{Progress, Silent};
 use rayon::prelude::*;
 
 use crate::scene::Scene;
@@ -102,6 +105,15 @@ pub fn build_spheres(
     scene: Scene,
     options: &BuildOptions,
 ) -> Result<(PagedFile, BuildStats), BuildError> {
+    build_spheres_reporting(scene, options, &Silent)
+}
+
+/// [`build_spheres`], telling `progress` how far each step has got.
+pub fn build_spheres_reporting(
+    scene: Scene,
+    options: &BuildOptions,
+    progress: &dyn Progress,
+) -> Result<(PagedFile, BuildStats), BuildError> {
     let layout = NodeLayout {
         normals: scene.has_orientation(),
         color: scene.has_color(),
@@ -115,7 +127,7 @@ pub fn build_spheres(
         return Err(BuildError::TooLarge(vertices));
     }
     let started = Instant::now();
-    let (mut leaf_list, leaf_stats) = leaves::make_leaves(scene, layout.color);
+    let (mut leaf_list, leaf_stats) = leaves::make_leaves(scene, layout.color, progress);
     if leaf_list.is_empty() {
         return Err(BuildError::Empty);
     }
@@ -125,7 +137,7 @@ pub fn build_spheres(
     let seconds_leaves = started.elapsed().as_secs_f64();
 
     let started = Instant::now();
-    let tree = tree::build_tree_within(leaf_list, measured.bounds);
+    let tree = tree::build_tree_within(leaf_list, measured.bounds, progress);
     let collapsed_duplicates = tree.collapsed_duplicates;
     let seconds_tree = started.elapsed().as_secs_f64();
 
@@ -140,6 +152,7 @@ pub fn build_spheres(
             bounds_max,
             record_leaf_sources: options.record_leaf_sources,
         },
+        progress,
     );
     let seconds_layout = started.elapsed().as_secs_f64();
     let stats = BuildStats {

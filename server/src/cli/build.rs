@@ -9,10 +9,43 @@ use serde_json::json;
 
 use super::{BuildArgs, Kind, Report, memory};
 use crate::build::cubes::{CubeOptions, build_cubes};
-use crate::build::{BuildOptions, build_spheres};
+use crate::build::{BuildOptions, Progress, build_spheres_reporting};
 use crate::import::{Params, load_input};
 use crate::scene::Scene;
 use crate::store::{check_target, write_atomic};
+
+/// Steps without a measure of their own (import, writing): a spinner and
+/// what is going on.
+fn spinner_style() -> ProgressStyle {
+    ProgressStyle::with_template("{spinner} {elapsed_precise} {msg}")
+        .unwrap_or_else(|_| ProgressStyle::default_spinner())
+}
+
+/// The terminal's progress bar as the builder's [`Progress`]: a step's
+/// name, a bar, its percentage and the time it has left.
+struct Bar<'a>(&'a ProgressBar);
+
+impl Progress for Bar<'_> {
+    fn begin(&self, step: &'static str, total: u64) {
+        // Position first: a tick between these calls must not draw the
+        // last step's position against this step's length.
+        self.0.set_position(0);
+        self.0.set_length(total);
+        self.0.reset_eta();
+        self.0.set_message(step);
+        self.0.set_style(
+            ProgressStyle::with_template(
+                "{spinner} {elapsed_precise} building: {msg:7} [{bar:30}] {percent:>3}% ({eta} left)",
+            )
+            .unwrap_or_else(|_| ProgressStyle::default_bar())
+            .progress_chars("=> "),
+        );
+    }
+
+    fn advance(&self, done: u64) {
+        self.0.inc(done);
+    }
+}
 
 pub fn run(args: &BuildArgs) -> anyhow::Result<Report> {
     let params = Params::parse(&args.params).map_err(anyhow::Error::msg)?;
@@ -21,10 +54,7 @@ pub fn run(args: &BuildArgs) -> anyhow::Result<Report> {
         ProgressBar::hidden()
     } else {
         let bar = ProgressBar::new_spinner();
-        bar.set_style(
-            ProgressStyle::with_template("{spinner} {elapsed_precise} {msg}")
-                .unwrap_or_else(|_| ProgressStyle::default_spinner()),
-        );
+        bar.set_style(spinner_style());
         bar.enable_steady_tick(std::time::Duration::from_millis(100));
         bar
     };
@@ -43,7 +73,7 @@ pub fn run(args: &BuildArgs) -> anyhow::Result<Report> {
                 page_bytes: args.page_bytes.unwrap_or(crate::build::DEFAULT_PAGE_BYTES),
                 ..BuildOptions::default()
             };
-            let (file, stats) = build_spheres(scene, &options)
+            let (file, stats) = build_spheres_reporting(scene, &options, &Bar(&progress))
                 .with_context(|| format!("building {}", args.inputs.join(" ")))?;
             let nodes = stats.nodes;
             (file, serde_json::to_value(stats)?, nodes, "spheres")
@@ -66,6 +96,7 @@ pub fn run(args: &BuildArgs) -> anyhow::Result<Report> {
         }
     };
     let seconds_build = build_started.elapsed().as_secs_f64();
+    progress.set_style(spinner_style());
     progress.set_message(format!("writing {}", args.out.display()));
     let bytes = write_atomic(&args.out, &file)?;
     progress.finish_and_clear();

@@ -24,6 +24,7 @@ mod parallel;
 pub use nodes::{InteriorNodes, SharedNodes};
 
 use super::leaves::{Leaf, acos_upper, cone_from_u8, cone_to_u8, pack_normal, unpack_normal};
+use super::progress::{Progress, Silent};
 
 /// Binary splits by bisection before falling back to median splits.
 pub const BISECT_DEPTH: u32 = 96;
@@ -98,17 +99,19 @@ const EMPTY_SUMMARY: Summary = Summary {
 /// Builds the tree; `leaves` must not be empty.
 pub fn build_tree(leaves: Vec<Leaf>) -> Tree {
     let all = bounds(&leaves);
-    build_tree_within(leaves, all)
+    build_tree_within(leaves, all, &Silent)
 }
 
-/// [`build_tree`] when the leaves' bounds are already known.
-pub fn build_tree_within(mut leaves: Vec<Leaf>, all: Bounds) -> Tree {
+/// [`build_tree`] when the leaves' bounds are already known, telling
+/// `progress` how many leaves are in finished subtrees.
+pub fn build_tree_within(mut leaves: Vec<Leaf>, all: Bounds, progress: &dyn Progress) -> Tree {
     assert!(!leaves.is_empty(), "build_tree needs at least one leaf");
     assert!(
         leaves.len() < (1 << 31),
         "too many leaves for 31-bit references"
     );
-    let (interior, root, collapsed) = parallel::build(&mut leaves, all);
+    progress.begin("tree", leaves.len() as u64);
+    let (interior, root, collapsed) = parallel::build(&mut leaves, all, progress);
     Tree {
         leaves,
         interior,

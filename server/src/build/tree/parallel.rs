@@ -21,6 +21,7 @@ use super::{
     interior_capacity, parent_of,
 };
 use crate::build::leaves::Leaf;
+use crate::build::progress::Progress;
 
 /// About this many ranges are built as tasks: enough for work stealing to
 /// even out ranges of unequal size on any thread count, few enough that the
@@ -50,7 +51,11 @@ type Built = (NodeRef, Summary, u64, Vec<Interior>);
 
 /// Builds the tree of `leaves` (bounds `all`); returns its interior nodes,
 /// root and collapsed-duplicate count.
-pub(super) fn build(leaves: &mut [Leaf], all: Bounds) -> (InteriorNodes, NodeRef, u64) {
+pub(super) fn build(
+    leaves: &mut [Leaf],
+    all: Bounds,
+    progress: &dyn Progress,
+) -> (InteriorNodes, NodeRef, u64) {
     let cut = (leaves.len() / TASKS).max(TASK_MIN);
     let mut top = split_top(leaves, 0, all, 0, cut);
     let mut tasks = Vec::new();
@@ -71,6 +76,7 @@ pub(super) fn build(leaves: &mut [Leaf], all: Bounds) -> (InteriorNodes, NodeRef
         .into_par_iter()
         .map(|(range, start, bounds, depth, mut nodes)| {
             let (root, summary, collapsed) = build_range(range, bounds, start, depth, &mut nodes);
+            progress.advance(range.len() as u64);
             // The unused room, freed: on huge pages up to 2 MiB of it per
             // task would be resident.
             nodes.shrink_to_fit();

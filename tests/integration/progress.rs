@@ -1,0 +1,67 @@
+//! A build reports its steps in order, and each step's parts add up to the
+//! total it announced, so a progress bar ends at 100 %.
+
+use std::sync::Mutex;
+
+use farfield_server::build::{BuildOptions, BuildStats, Progress, build_spheres_reporting};
+use farfield_server::import::{Params, load_input};
+use farfield_server::scene::{Geometry, Primitives, Scene};
+use glam::DVec3;
+
+/// Every step begun, with its total and the sum of its parts.
+#[derive(Default)]
+struct Recorder(Mutex<Vec<(&'static str, u64, u64)>>);
+
+impl Progress for Recorder {
+    fn begin(&self, step: &'static str, total: u64) {
+        self.0.lock().unwrap().push((step, total, 0));
+    }
+    fn advance(&self, done: u64) {
+        let mut steps = self.0.lock().unwrap();
+        let current = steps.last_mut().expect("advance before any step began");
+        current.2 += done;
+    }
+}
+
+/// The steps a build reported, and its stats.
+fn steps_of(scene: Scene) -> (Vec<(&'static str, u64, u64)>, BuildStats) {
+    let recorder = Recorder::default();
+    let (_, stats) =
+        build_spheres_reporting(scene, &BuildOptions::default(), &recorder).expect("build");
+    (recorder.0.into_inner().unwrap(), stats)
+}
+
+fn assert_complete(steps: &[(&'static str, u64, u64)], stats: &BuildStats) {
+    let names: Vec<_> = steps.iter().map(|s| s.0).collect();
+    assert_eq!(names, ["leaves", "tree", "layout"]);
+    for &(step, total, done) in steps {
+        assert_eq!(done, total, "{step}: parts add up to {done} of {total}");
+    }
+    assert_eq!(steps[0].1, stats.input_vertices, "leaves count vertices");
+    assert_eq!(steps[2].1, stats.nodes, "layout counts the file's nodes");
+}
+
+#[test]
+fn an_instanced_scene_reports_every_step_to_its_end() {
+    let mut params = Params::default();
+    params.set("size", 200);
+    params.set("trees", 16);
+    let (steps, stats) = steps_of(load_input("gen:island", &params).unwrap());
+    assert_complete(&steps, &stats);
+    // Big enough that the tree is built as several tasks.
+    assert!(steps[1].1 > 100_000, "{steps:?}");
+}
+
+#[test]
+fn duplicates_collapse_without_leaving_the_layout_short() {
+    let mut positions: Vec<DVec3> = (0..5_000)
+        .map(|i| DVec3::new(f64::from(i % 71), f64::from(i / 71), 0.0))
+        .collect();
+    positions.extend(std::iter::repeat_n(DVec3::new(3.0, 4.0, 0.0), 1_000));
+    let scene = Scene::single(Geometry::new("points", positions, Primitives::Points));
+    let (steps, stats) = steps_of(scene);
+    // The tree is given every leaf; the layout places only those left after
+    // collapsing, and its total must say so.
+    assert_eq!(stats.collapsed_duplicates, 1_000);
+    assert_complete(&steps, &stats);
+}
