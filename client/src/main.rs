@@ -321,20 +321,29 @@ fn render(args: RenderArgs) -> anyhow::Result<()> {
             r.adapter
         );
     }
+    render_outcome(r, until == Until::Refined)
+}
+
+/// The error a finished render exits with, if any: pages given up on (the
+/// image is written, with their parts drawn coarser) and, when the job was
+/// to refine, not having refined.
+fn render_outcome(
+    r: &farfield_client::commands::render::RenderReport,
+    until_refined: bool,
+) -> anyhow::Result<()> {
+    let mut problems = Vec::new();
     if !r.pages_failed.is_empty() {
-        anyhow::bail!(
-            "drawn without {} page(s) {:?}, whose parts are coarser: {}",
-            r.pages_failed.len(),
-            r.pages_failed,
-            r.last_error.as_deref().unwrap_or("corrupt")
-        );
+        let pages: Vec<u32> = r.pages_failed.iter().map(|f| f.page).collect();
+        let reasons: Vec<&str> = r.pages_failed.iter().map(|f| f.reason.as_str()).collect();
+        problems.push(format!(
+            "pages {pages:?} could not be loaded, their parts are drawn coarser ({})",
+            reasons.join("; ")
+        ));
     }
-    if !r.refined && until == Until::Refined {
-        anyhow::bail!(
-            "{}",
-            r.last_error.clone().unwrap_or_else(|| "not refined".into())
-        );
+    if !r.refined && until_refined {
+        problems.push(r.last_error.clone().unwrap_or_else(|| "not refined".into()));
     }
+    anyhow::ensure!(problems.is_empty(), "{}", problems.join("; "));
     Ok(())
 }
 
@@ -387,7 +396,7 @@ fn fly_path(
             report.net.bytes_received
         );
     }
-    Ok(())
+    render_outcome(&report, false)
 }
 
 /// `farfield compare A B`: the error of image B against reference A.

@@ -7,7 +7,10 @@
 //! [`Viewer::request`] with the traversal's wanted pages: new wishes are
 //! sent, wishes that fell out of view are cancelled. A page that fails its
 //! checksum is reported, counted and asked for again (at most
-//! [`MAX_PAGE_FAILURES`] times), never drawn.
+//! [`MAX_PAGE_FAILURES`] times), never drawn; a page the server says it
+//! cannot send is given up at once. Given-up pages, with why
+//! ([`Viewer::failed_pages`]), are no longer asked for: their parts of the
+//! tree are drawn from coarser pages.
 
 use std::collections::HashMap;
 use std::path::Path;
@@ -24,6 +27,13 @@ use crate::net::{Connection, NetEvent, Outgoing, SessionOptions};
 
 /// Checksum failures after which a page is given up on.
 pub const MAX_PAGE_FAILURES: u32 = 3;
+
+/// A page given up on, and the last reason it could not be had.
+#[derive(Debug, Clone, PartialEq, Eq, serde::Serialize)]
+pub struct FailedPage {
+    pub page: u32,
+    pub reason: String,
+}
 
 /// Counters a render reports.
 #[derive(Debug, Clone, Default, serde::Serialize)]
@@ -53,6 +63,8 @@ pub struct Viewer {
     cache_bytes: usize,
     requested: HashMap<u32, f32>,
     failures: HashMap<u32, u32>,
+    /// The last reason each page in `failures` could not be had.
+    failure_reasons: HashMap<u32, String>,
     pub stats: NetStats,
     connected: bool,
 }
@@ -96,6 +108,7 @@ impl Viewer {
             cache_bytes,
             requested: HashMap::new(),
             failures: HashMap::new(),
+            failure_reasons: HashMap::new(),
             stats: NetStats::default(),
             connected: false,
         }
@@ -171,13 +184,15 @@ impl Viewer {
                         bail!("server: {message}");
                     }
                 }
+                NetEvent::GaveUp { reason } => bail!("{reason}"),
                 NetEvent::PageUnavailable { page, reason } => {
-                    tracing::warn!("page {page} unavailable: {reason}");
+                    tracing::warn!("giving up page {page}: {reason}");
                     self.stats.pages_unavailable += 1;
-                    self.stats.last_error = Some(reason);
+                    self.stats.last_error = Some(reason.clone());
                     self.requested.remove(&page);
                     // Given up at once: the server's copy will not heal.
                     self.failures.insert(page, MAX_PAGE_FAILURES);
+                    self.failure_reasons.insert(page, reason);
                 }
                 NetEvent::Disconnected { reason } => {
                     if self.connected {
@@ -238,7 +253,9 @@ impl Viewer {
                 tracing::warn!(
                     "page {index} rejected ({e}); attempt {failures} of {MAX_PAGE_FAILURES}"
                 );
-                self.stats.last_error = Some(format!("page {index}: {e}"));
+                let reason = format!("page {index}: {e}");
+                self.failure_reasons.insert(index, reason.clone());
+                self.stats.last_error = Some(reason);
                 Some((index, false))
             }
         }
@@ -256,11 +273,7 @@ impl Viewer {
         let mut new = Vec::new();
         let mut still: HashMap<u32, f32> = HashMap::with_capacity(wanted.len());
         for w in wanted {
-            if self
-                .failures
-                .get(&w.page)
-                .is_some_and(|&f| f >= MAX_PAGE_FAILURES)
-            {
+            if self.gave_up(w.page) {
                 continue;
             }
             let priority = w.priority.min(f64::from(f32::MAX)) as f32;
@@ -326,13 +339,27 @@ impl Viewer {
         }
     }
 
-    /// Pages given up on after repeated checksum failures.
-    pub fn failed_pages(&self) -> Vec<u32> {
-        self.failures
+    /// Pages given up on (repeated checksum failures, or the server cannot
+    /// send them), by page index, with the last reason of each.
+    pub fn failed_pages(&self) -> Vec<FailedPage> {
+        let mut failed: Vec<FailedPage> = self
+            .failures
             .iter()
             .filter(|&(_, &f)| f >= MAX_PAGE_FAILURES)
-            .map(|(&p, _)| p)
-            .collect()
+            .map(|(&page, _)| FailedPage {
+                page,
+                reason: self.failure_reasons.get(&page).cloned().unwrap_or_default(),
+            })
+            .collect();
+        failed.sort_unstable_by_key(|f| f.page);
+        failed
+    }
+
+    /// Whether `page` was given up on: it is not asked for again.
+    pub fn gave_up(&self, page: u32) -> bool {
+        self.failures
+            .get(&page)
+            .is_some_and(|&f| f >= MAX_PAGE_FAILURES)
     }
 }
 
@@ -374,7 +401,10 @@ mod tests {
             assert!(!v.hierarchy().unwrap().is_resident(1));
             assert_eq!(v.stats.pages_rejected, u64::from(attempt));
         }
-        assert_eq!(v.failed_pages(), vec![1]);
+        let failed = v.failed_pages();
+        assert_eq!(failed.len(), 1);
+        assert_eq!(failed[0].page, 1);
+        assert!(failed[0].reason.contains("page 1"), "{failed:?}");
         // The good bytes are still taken.
         assert_eq!(v.on_page(&pages[1]), Some((1, true)));
     }

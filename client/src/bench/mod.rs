@@ -262,7 +262,14 @@ pub fn run(
                 loop {
                     viewer.pump(Duration::ZERO)?;
                     if viewer.header().is_none() {
-                        anyhow::ensure!(started.elapsed() < job.timeout, "no header");
+                        anyhow::ensure!(
+                            started.elapsed() < job.timeout,
+                            "{}",
+                            viewer.with_last_error(format!(
+                                "no scene header after {:?}",
+                                job.timeout
+                            ))
+                        );
                         viewer.pump(Duration::from_millis(20))?;
                         continue;
                     }

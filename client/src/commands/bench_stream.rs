@@ -174,7 +174,8 @@ fn first_image_ms(
     while viewer.hierarchy().is_none_or(|h| !h.is_resident(0)) {
         anyhow::ensure!(
             started.elapsed() < Duration::from_secs(30),
-            "no page 0 after 30 s"
+            "{}",
+            viewer.with_last_error("no page 0 after 30 s".into())
         );
         viewer.pump(Duration::from_millis(20))?;
     }

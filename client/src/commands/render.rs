@@ -17,7 +17,7 @@ use serde::Serialize;
 use crate::args::CameraSpec;
 use crate::net::SessionOptions;
 use crate::render::{Coverage, Kernel, Renderer, SplatStyle, pack_leaves};
-use crate::viewer::{NetStats, Viewer};
+use crate::viewer::{FailedPage, NetStats, Viewer};
 
 /// When a render stops.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -85,8 +85,9 @@ pub struct RenderReport {
     pub last_draw_ms: f64,
     pub last_error: Option<String>,
     /// Pages given up on (corrupt on the server, or failing their checksum
-    /// on arrival too often): their parts are drawn from coarser pages.
-    pub pages_failed: Vec<u32>,
+    /// on arrival too often), with why: their parts are drawn from coarser
+    /// pages.
+    pub pages_failed: Vec<FailedPage>,
 }
 
 /// A finished render: the report and the last image.
@@ -262,12 +263,11 @@ impl Settle {
             if self.keep_frames {
                 self.frames.push(self.rgba.clone());
             }
-            let failed = viewer.failed_pages();
             let missing = self
                 .cut
                 .wanted()
                 .iter()
-                .filter(|w| !failed.contains(&w.page))
+                .filter(|w| !viewer.gave_up(w.page))
                 .count();
             let refined = missing == 0 && self.threshold <= self.final_threshold;
             if refined && self.time_to_refined_ms.is_none() {
@@ -331,11 +331,7 @@ impl Settle {
             last_upload_ms: self.last.upload_ms,
             last_draw_ms: self.last.draw_ms,
             last_error: self.error.clone().or(stats.last_error.clone()),
-            pages_failed: {
-                let mut failed = viewer.failed_pages();
-                failed.sort_unstable();
-                failed
-            },
+            pages_failed: viewer.failed_pages(),
         }
     }
 }

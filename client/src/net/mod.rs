@@ -20,7 +20,8 @@ use futures_util::{SinkExt, StreamExt};
 use tokio::sync::mpsc;
 use tokio_tungstenite::tungstenite::Message;
 
-/// Options a client announces in its hello, and how long it tries.
+/// What a client announces in its hello (`max_in_flight_bytes`,
+/// `allow_push`), and how long it tries to connect at first.
 #[derive(Debug, Clone, Copy)]
 pub struct SessionOptions {
     pub max_in_flight_bytes: u64,
@@ -51,6 +52,10 @@ pub enum NetEvent {
     Page { bytes: Vec<u8> },
     /// The server reported a problem; fatal ones end the session.
     ServerError { message: String, fatal: bool },
+    /// The client stopped trying: the server refused the session (an
+    /// unknown scene) or could not be reached within the first-connection
+    /// grace. The session is over.
+    GaveUp { reason: String },
     /// The connection dropped (or could not be made); the task retries.
     Disconnected { reason: String },
     /// The server cannot send this page (corrupt on its disk).
@@ -135,10 +140,21 @@ async fn run(
     mut outgoing: mpsc::UnboundedReceiver<Outgoing>,
 ) {
     let mut backoff = Duration::from_millis(50);
-    let started = tokio::time::Instant::now();
+    let first_deadline = tokio::time::Instant::now() + options.first_connect_grace;
     let mut connected_once = false;
     loop {
-        let reason = match session(&url, options, &events, &mut outgoing, &mut connected_once).await
+        // Until a first connection, an attempt may not outlast the grace
+        // (a silently dropped connect would otherwise wait minutes).
+        let deadline = (!connected_once).then_some(first_deadline);
+        let reason = match session(
+            &url,
+            options,
+            &events,
+            &mut outgoing,
+            deadline,
+            &mut connected_once,
+        )
+        .await
         {
             Ok(SessionEnd::ReceiverGone) => return,
             Ok(SessionEnd::Fatal) => return,
@@ -148,13 +164,14 @@ async fn run(
             }
             Err(reason) => reason,
         };
-        if !connected_once && started.elapsed() >= options.first_connect_grace {
-            let _ = events.send(NetEvent::ServerError {
-                message: format!(
-                    "cannot reach the server after {:.0} s of trying: {reason}",
+        // Give up now rather than start an attempt the deadline would cut
+        // short, whose "no answer" would hide this attempt's reason.
+        if !connected_once && tokio::time::Instant::now() + backoff >= first_deadline {
+            let _ = events.send(NetEvent::GaveUp {
+                reason: format!(
+                    "cannot reach the server within {:.0} s: {reason}",
                     options.first_connect_grace.as_secs_f64()
                 ),
-                fatal: true,
             });
             return;
         }
@@ -170,12 +187,15 @@ async fn run(
 }
 
 /// The server's reason when it refused the connection with a client error
-/// (4xx): its JSON `error` field when there is one, else the status line.
+/// that a retry cannot change (4xx, but not 408 Request Timeout or 429 Too
+/// Many Requests): its JSON `error` field when there is one, else the
+/// status line.
 fn refusal(url: &str, error: &tokio_tungstenite::tungstenite::Error) -> Option<String> {
     let tokio_tungstenite::tungstenite::Error::Http(response) = error else {
         return None;
     };
-    if !response.status().is_client_error() {
+    let status = response.status();
+    if !status.is_client_error() || matches!(status.as_u16(), 408 | 429) {
         return None;
     }
     let reason = response
@@ -183,7 +203,7 @@ fn refusal(url: &str, error: &tokio_tungstenite::tungstenite::Error) -> Option<S
         .as_deref()
         .and_then(|body| serde_json::from_slice::<serde_json::Value>(body).ok())
         .and_then(|json| json.get("error")?.as_str().map(str::to_owned))
-        .unwrap_or_else(|| response.status().to_string());
+        .unwrap_or_else(|| status.to_string());
     Some(format!("{url}: {reason}"))
 }
 
@@ -198,20 +218,25 @@ async fn session(
     options: SessionOptions,
     events: &mpsc::UnboundedSender<NetEvent>,
     outgoing: &mut mpsc::UnboundedReceiver<Outgoing>,
+    connect_deadline: Option<tokio::time::Instant>,
     connected_once: &mut bool,
 ) -> Result<SessionEnd, String> {
     // No Nagle: requests and acknowledgements are small and must not sit
     // waiting for the server's delayed ACKs (40 ms a round trip otherwise).
-    let socket = match tokio_tungstenite::connect_async_with_config(url, None, true).await {
+    let connecting = tokio_tungstenite::connect_async_with_config(url, None, true);
+    let connected = match connect_deadline {
+        Some(deadline) => tokio::time::timeout_at(deadline, connecting)
+            .await
+            .map_err(|_| format!("connect {url}: no answer"))?,
+        None => connecting.await,
+    };
+    let socket = match connected {
         Ok((socket, _)) => socket,
         Err(e) => {
-            // A 4xx answer (an unknown scene) will not change on retry:
-            // end the session with the server's reason instead of waiting.
-            if let Some(message) = refusal(url, &e) {
-                let _ = events.send(NetEvent::ServerError {
-                    message,
-                    fatal: true,
-                });
+            // A refusal (an unknown scene) will not change on retry: end
+            // the session with the server's reason instead of waiting.
+            if let Some(reason) = refusal(url, &e) {
+                let _ = events.send(NetEvent::GaveUp { reason });
                 return Ok(SessionEnd::Fatal);
             }
             return Err(format!("connect {url}: {e}"));

@@ -4,9 +4,11 @@
 //! amount of work with [`Progress::begin`] and report finished parts with
 //! [`Progress::advance`]: the leaves by vertices, the tree by leaves, the
 //! layout by nodes placed. Parts are coarse (a geometry, one of the tree's
-//! tasks, one of the layout's windows), so reporting costs nothing next to
-//! the work; the command line turns it into a bar with a percentage and an
-//! estimate of the time left, which a build of many minutes needs.
+//! about 64 tasks, one of the layout's windows), so reporting costs nothing
+//! next to the work. The leaves of a single geometry (a scanned mesh) are
+//! one part, so that step, about a tenth of a build, jumps from 0 to 100 %.
+//! The command line turns it into a bar with a percentage and an estimate
+//! of the time left, which a build of many minutes needs.
 
 /// What a build reports as it goes. Called from the build's worker
 /// threads, hence `Sync`.

@@ -2,7 +2,8 @@
 //!
 //! [`write_atomic`] writes to a temporary file beside the target and renames
 //! it into place only after everything is on disk, so a failed or
-//! interrupted build never leaves a half file under the target's name.
+//! interrupted build never leaves a half file under the target's name;
+//! [`check_target`] tells a build before it starts that it could not.
 //! [`SceneFile`] maps a file and hands out page bytes, verified on request.
 
 use std::fs::File;
@@ -40,14 +41,16 @@ pub fn check_target(path: &Path) -> Result<(), StoreError> {
     if path.is_dir() {
         return Err(io(std::io::Error::other("is a folder, not a file")));
     }
-    let tmp = temp_path(path)?;
-    File::create(&tmp).map_err(io)?;
-    std::fs::remove_file(&tmp).map_err(io)
+    // Not the name `write_atomic` uses: a write of the same path in this
+    // process may be under way.
+    let probe = temp_path(path, "tmp-check")?;
+    File::create(&probe).map_err(io)?;
+    std::fs::remove_file(&probe).map_err(io)
 }
 
-/// The temporary file a write of `path` goes through: hidden, next to
-/// `path` (so the rename stays on one file system), named by process.
-fn temp_path(path: &Path) -> Result<PathBuf, StoreError> {
+/// A temporary file for `path`: hidden, next to `path` (so a rename stays on
+/// one file system), named by `kind` and process.
+fn temp_path(path: &Path, kind: &str) -> Result<PathBuf, StoreError> {
     let dir = path
         .parent()
         .filter(|p| !p.as_os_str().is_empty())
@@ -57,7 +60,7 @@ fn temp_path(path: &Path) -> Result<PathBuf, StoreError> {
         error: std::io::Error::other("no file name"),
     })?;
     Ok(dir.join(format!(
-        ".{}.tmp-{}",
+        ".{}.{kind}-{}",
         name.to_string_lossy(),
         std::process::id()
     )))
@@ -69,7 +72,7 @@ pub fn write_atomic(path: &Path, file: &PagedFile) -> Result<u64, StoreError> {
         path: path.to_owned(),
         error,
     };
-    let tmp = temp_path(path)?;
+    let tmp = temp_path(path, "tmp")?;
     let result = (|| -> std::io::Result<u64> {
         let mut out = BufWriter::new(File::create(&tmp)?);
         let header = file.header.encode();
