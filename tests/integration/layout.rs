@@ -3,7 +3,9 @@
 
 use farfield_server::build::PagedFile;
 use farfield_server::import::{Params, load_input};
+use farfield_server::scene::{Geometry, Primitives, Scene};
 use farfield_tests::scratch;
+use glam::DVec3;
 
 use crate::{build, cli, resident, write_and_open};
 
@@ -57,12 +59,26 @@ fn the_file_is_the_same_on_any_thread_count() {
 }
 
 #[test]
+fn the_header_counts_levels_with_the_root_as_one() {
+    let one_point = Scene::single(Geometry::new("point", vec![DVec3::ONE], Primitives::Points));
+    assert_eq!(build(one_point).header.levels, 1, "the root alone");
+    let file = island();
+    let deepest = resident(&file)
+        .decode_all()
+        .iter()
+        .map(|n| n.level)
+        .max()
+        .expect("nodes");
+    assert_eq!(file.header.levels, deepest + 1);
+}
+
+#[test]
 fn levels_of_many_windows_are_the_same_on_any_thread_count() {
     // The layout quantizes a level in windows of 32 Ki parents and places
     // each while the next is quantized; on one thread the two take turns.
     // A terrain of 512 x 512 vertices has levels of more parents than that.
     let one = the_same_on_1_and_3_threads(|| island_of(512, 0));
-    let mut parents_per_level = vec![0usize; one.header.levels as usize + 1];
+    let mut parents_per_level = vec![0usize; one.header.levels as usize];
     for node in resident(&one).decode_all() {
         if node.children > 0 {
             parents_per_level[node.level as usize] += 1;

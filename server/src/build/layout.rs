@@ -192,7 +192,9 @@ pub fn lay_out(tree: Tree, input: LayoutInput, progress: &dyn Progress) -> Paged
             leaf_geometry: false,
         },
         node_bytes: node_bytes as u32,
-        levels: windows.depth,
+        // `depth` is the deepest level's index (the root's is 0); the
+        // header counts levels, the root alone being one.
+        levels: windows.depth + 1,
         nodes,
         leaves,
         input_vertices: input.input_vertices,
