@@ -7,7 +7,7 @@ use anyhow::Context;
 use indicatif::{ProgressBar, ProgressStyle};
 use serde_json::json;
 
-use super::{BuildArgs, Kind, Report, memory};
+use super::{BuildArgs, Kind, Report, counted, memory};
 use crate::build::cubes::{CubeOptions, build_cubes};
 use crate::build::{BuildOptions, Progress, build_spheres_reporting};
 use crate::import::{Params, load_input};
@@ -115,12 +115,12 @@ pub fn run(args: &BuildArgs) -> anyhow::Result<Report> {
         "stats": stats,
     });
     let text = format!(
-        "{}: {kind} hierarchy, {} nodes ({} leaves, {} levels) in {} pages, {} bytes ({:.2} bytes/node), {:.2} s",
+        "{}: {kind} hierarchy, {} ({}, {}) in {}, {} bytes ({:.2} bytes/node), {:.2} s",
         args.out.display(),
-        h.nodes,
-        h.leaves,
-        h.levels,
-        h.pages.len(),
+        counted(h.nodes, "node", "nodes"),
+        counted(h.leaves, "leaf", "leaves"),
+        counted(h.levels, "level", "levels"),
+        counted(h.pages.len() as u64, "page", "pages"),
         bytes,
         bytes as f64 / nodes as f64,
         seconds

@@ -2,7 +2,7 @@
 
 use serde_json::json;
 
-use super::{InspectArgs, Report};
+use super::{InspectArgs, Report, counted};
 use crate::store::SceneFile;
 
 pub fn run(args: &InspectArgs) -> anyhow::Result<Report> {
@@ -35,15 +35,15 @@ pub fn run(args: &InspectArgs) -> anyhow::Result<Report> {
         "corrupt": corrupt.iter().map(|(i, e)| json!({"page": i, "error": e.to_string()})).collect::<Vec<_>>(),
     });
     let mut text = format!(
-        "{}: {} hierarchy, {} nodes ({} leaves), {} levels, color {}, normals {}, {} pages, {} bytes ({:.2} bytes/node)",
+        "{}: {} hierarchy, {} ({}), {}, color {}, normals {}, {}, {} bytes ({:.2} bytes/node)",
         args.file.display(),
         h.kind.name(),
-        h.nodes,
-        h.leaves,
-        h.levels,
+        counted(h.nodes, "node", "nodes"),
+        counted(h.leaves, "leaf", "leaves"),
+        counted(h.levels, "level", "levels"),
         h.attributes.color,
         h.attributes.normals,
-        h.pages.len(),
+        counted(h.pages.len() as u64, "page", "pages"),
         file.len(),
         file.len() as f64 / h.nodes as f64
     );

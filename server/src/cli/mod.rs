@@ -161,6 +161,12 @@ pub fn run(cli: Cli) -> anyhow::Result<Report> {
     }
 }
 
+/// `n` and a noun in the right number: "1 level", "11 levels".
+pub(crate) fn counted(n: impl Into<u64>, one: &str, many: &str) -> String {
+    let n = n.into();
+    format!("{n} {}", if n == 1 { one } else { many })
+}
+
 /// Median of a non-empty list of samples.
 pub(crate) fn median(samples: &mut [f64]) -> f64 {
     samples.sort_by(f64::total_cmp);
@@ -172,5 +178,17 @@ pub(crate) fn median(samples: &mut [f64]) -> f64 {
         samples[n / 2]
     } else {
         (samples[n / 2 - 1] + samples[n / 2]) * 0.5
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn counts_say_their_noun_in_the_right_number() {
+        assert_eq!(counted(1u32, "level", "levels"), "1 level");
+        assert_eq!(counted(0u32, "leaf", "leaves"), "0 leaves");
+        assert_eq!(counted(11u64, "page", "pages"), "11 pages");
     }
 }
