@@ -62,9 +62,8 @@ pub struct Viewer {
     recency: LruCache<u32, ()>,
     cache_bytes: usize,
     requested: HashMap<u32, f32>,
-    failures: HashMap<u32, u32>,
-    /// The last reason each page in `failures` could not be had.
-    failure_reasons: HashMap<u32, String>,
+    /// Per page that failed: how often, and the last reason.
+    failures: HashMap<u32, (u32, String)>,
     pub stats: NetStats,
     connected: bool,
 }
@@ -108,7 +107,6 @@ impl Viewer {
             cache_bytes,
             requested: HashMap::new(),
             failures: HashMap::new(),
-            failure_reasons: HashMap::new(),
             stats: NetStats::default(),
             connected: false,
         }
@@ -191,8 +189,7 @@ impl Viewer {
                     self.stats.last_error = Some(reason.clone());
                     self.requested.remove(&page);
                     // Given up at once: the server's copy will not heal.
-                    self.failures.insert(page, MAX_PAGE_FAILURES);
-                    self.failure_reasons.insert(page, reason);
+                    self.failures.insert(page, (MAX_PAGE_FAILURES, reason));
                 }
                 NetEvent::Disconnected { reason } => {
                     if self.connected {
@@ -248,13 +245,13 @@ impl Viewer {
             }
             Err(e) => {
                 self.stats.pages_rejected += 1;
-                let failures = self.failures.entry(index).or_insert(0);
+                let reason = format!("page {index}: {e}");
+                let (failures, last) = self.failures.entry(index).or_default();
                 *failures += 1;
+                *last = reason.clone();
                 tracing::warn!(
                     "page {index} rejected ({e}); attempt {failures} of {MAX_PAGE_FAILURES}"
                 );
-                let reason = format!("page {index}: {e}");
-                self.failure_reasons.insert(index, reason.clone());
                 self.stats.last_error = Some(reason);
                 Some((index, false))
             }
@@ -345,10 +342,10 @@ impl Viewer {
         let mut failed: Vec<FailedPage> = self
             .failures
             .iter()
-            .filter(|&(_, &f)| f >= MAX_PAGE_FAILURES)
-            .map(|(&page, _)| FailedPage {
+            .filter(|&(&page, _)| self.gave_up(page))
+            .map(|(&page, (_, reason))| FailedPage {
                 page,
-                reason: self.failure_reasons.get(&page).cloned().unwrap_or_default(),
+                reason: reason.clone(),
             })
             .collect();
         failed.sort_unstable_by_key(|f| f.page);
@@ -359,7 +356,7 @@ impl Viewer {
     pub fn gave_up(&self, page: u32) -> bool {
         self.failures
             .get(&page)
-            .is_some_and(|&f| f >= MAX_PAGE_FAILURES)
+            .is_some_and(|&(count, _)| count >= MAX_PAGE_FAILURES)
     }
 }
 

@@ -78,6 +78,17 @@ fn job(source: Source, camera: CameraSpec) -> RenderJob {
     }
 }
 
+/// A job streaming the island from the server at `url`, at [`camera`].
+fn island_from(url: String) -> RenderJob {
+    job(
+        Source::Server {
+            url,
+            scene: "island".into(),
+        },
+        camera(),
+    )
+}
+
 fn camera() -> CameraSpec {
     CameraSpec::Orbit {
         azimuth_deg: 200.0,
@@ -294,16 +305,7 @@ fn two_clients_at_once_and_a_stalled_reader_does_not_stall_others() {
             ),
         )
     });
-    let first = render(
-        &mut renderer,
-        &job(
-            Source::Server {
-                url,
-                scene: "island".into(),
-            },
-            camera(),
-        ),
-    );
+    let first = render(&mut renderer, &island_from(url));
     let second = second.join().unwrap();
     assert!(psnr(&first.rgba, &file.rgba) >= 40.0);
     assert!(psnr(&second.rgba, &file_other.rgba) >= 40.0);
@@ -325,13 +327,7 @@ fn a_client_survives_a_server_restart_and_finishes_correctly() {
     let server = serve(&rt, &dir, 0);
     let addr = server.local_addr();
     // A small window makes the stream slow enough to be cut in the middle.
-    let mut j = job(
-        Source::Server {
-            url: format!("http://{addr}"),
-            scene: "island".into(),
-        },
-        camera(),
-    );
+    let mut j = island_from(format!("http://{addr}"));
     j.session.max_in_flight_bytes = 64 << 10;
     let client = std::thread::spawn(move || {
         let mut r = Renderer::new_headless(SIZE.0, SIZE.1).unwrap();
@@ -369,13 +365,7 @@ fn a_client_with_no_server_says_why_it_drew_nothing() {
         .unwrap();
     let port = refusing.local_addr().unwrap().port();
     let out = scratch("no-server").join("never.png");
-    let mut j = job(
-        Source::Server {
-            url: format!("http://127.0.0.1:{port}"),
-            scene: "island".into(),
-        },
-        camera(),
-    );
+    let mut j = island_from(format!("http://127.0.0.1:{port}"));
     j.out = Some(out.clone());
     // A render timeout inside the first-connection grace: the timeout ends
     // it, and says what the connection attempts met.
@@ -442,13 +432,7 @@ fn a_page_corrupt_on_the_server_is_given_up_and_the_rest_refines() {
     std::fs::write(&path, &bytes).unwrap();
     let rt = runtime();
     let server = serve(&rt, &dir, 0);
-    let j = job(
-        Source::Server {
-            url: format!("http://{}", server.local_addr()),
-            scene: "island".into(),
-        },
-        camera(),
-    );
+    let j = island_from(format!("http://{}", server.local_addr()));
     let started = Instant::now();
     let r = run(&j, &mut renderer, false).expect("render");
     // Waiting for a page that never comes would run to the 60 s timeout.
