@@ -593,6 +593,8 @@ static ALLOCATOR: farfield_server::allocator::HugePageAlloc =
     farfield_server::allocator::HugePageAlloc;
 
 fn main() -> ExitCode {
+    // SAFETY: first thing in `main`, before any thread is started.
+    unsafe { farfield_client::render::quiet_device_select_when_headless() };
     tracing_subscriber::fmt()
         .with_env_filter(tracing_subscriber::EnvFilter::from_default_env())
         .with_writer(std::io::stderr)

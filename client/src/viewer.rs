@@ -130,6 +130,15 @@ impl Viewer {
         }
     }
 
+    /// Why a caller gave up waiting `waited` for the scene's header, in
+    /// the words every command uses, with the last error.
+    pub fn no_header_error(&self, waited: Duration) -> String {
+        self.with_last_error(format!(
+            "no scene header after {:.1} s",
+            waited.as_secs_f64()
+        ))
+    }
+
     /// Pages asked for and not yet arrived.
     pub fn outstanding(&self) -> usize {
         self.requested.len()

@@ -1,6 +1,7 @@
 //! farfield's one integration test binary: each module covers one area,
 //! against real files and the real command line (run in-process).
 
+mod adapter;
 mod bad_input;
 mod bench;
 mod cubes;

@@ -124,7 +124,7 @@ fn header_of(viewer: &mut Viewer, timeout: Duration) -> anyhow::Result<FileHeade
         anyhow::ensure!(
             started.elapsed() < timeout,
             "{}",
-            viewer.with_last_error(format!("no scene header after {timeout:?}"))
+            viewer.no_header_error(timeout)
         );
         viewer.pump(Duration::from_millis(50))?;
     }
@@ -265,10 +265,7 @@ pub fn run(
                         anyhow::ensure!(
                             started.elapsed() < job.timeout,
                             "{}",
-                            viewer.with_last_error(format!(
-                                "no scene header after {:?}",
-                                job.timeout
-                            ))
+                            viewer.no_header_error(job.timeout)
                         );
                         viewer.pump(Duration::from_millis(20))?;
                         continue;

@@ -99,7 +99,7 @@ pub fn fly(
         anyhow::ensure!(
             started.elapsed() < job.timeout,
             "{}",
-            viewer.with_last_error(format!("no scene header after {:?}", job.timeout))
+            viewer.no_header_error(job.timeout)
         );
         viewer.pump(Duration::from_millis(100))?;
     }

@@ -227,12 +227,12 @@ impl Settle {
         loop {
             let elapsed = self.started.elapsed();
             if elapsed > self.timeout {
-                let seconds = elapsed.as_secs_f64();
-                self.error = Some(viewer.with_last_error(if viewer.header().is_none() {
-                    format!("no scene header after {seconds:.1} s")
+                self.error = Some(if viewer.header().is_none() {
+                    viewer.no_header_error(elapsed)
                 } else {
-                    format!("not refined after {seconds:.1} s")
-                }));
+                    let seconds = elapsed.as_secs_f64();
+                    viewer.with_last_error(format!("not refined after {seconds:.1} s"))
+                });
                 return Ok(());
             }
             viewer.pump(Duration::ZERO)?;

@@ -4,6 +4,8 @@
 //! falls back to GL (llvmpipe). `FARFIELD_BACKEND=vulkan|gl` forces one.
 //! Software adapters are always accepted: the CI machines have no GPU.
 
+use std::ffi::OsString;
+
 use anyhow::bail;
 
 /// Environment variable that forces a backend: `vulkan` or `gl`.
@@ -12,6 +14,42 @@ pub const BACKEND_ENV: &str = "FARFIELD_BACKEND";
 /// Environment variable that lets GPU tests pass without any adapter
 /// (`FARFIELD_ALLOW_NO_GPU=1`); without it a missing adapter fails them.
 pub const ALLOW_NO_GPU_ENV: &str = "FARFIELD_ALLOW_NO_GPU";
+
+/// Mesa's Vulkan device-select layer's own off switch (the
+/// `disable_environment` of its manifest): variable and value.
+pub const DEVICE_SELECT_OFF: (&str, &str) = ("NODEVICE_SELECT", "1");
+
+/// Whether Mesa's device-select layer should be switched off, reading the
+/// environment through `var`: when there is no desktop session to select a
+/// device for (neither `XDG_RUNTIME_DIR` nor `WAYLAND_DISPLAY` is set) and
+/// the user has neither asked the layer for a device
+/// (`MESA_VK_DEVICE_SELECT`) nor set the switch already. On such a machine
+/// (ssh, CI, a container, a service) the layer asks libwayland for a
+/// display, which prints `error: XDG_RUNTIME_DIR is invalid or not set in
+/// the environment.` twice: an "error" that is none, as the adapter opens
+/// either way, but the first thing a user of a headless server would read.
+pub fn device_select_unwanted(var: impl Fn(&str) -> Option<OsString>) -> bool {
+    let set = |name: &str| var(name).is_some_and(|v| !v.is_empty());
+    !set("XDG_RUNTIME_DIR")
+        && !set("WAYLAND_DISPLAY")
+        && !set("MESA_VK_DEVICE_SELECT")
+        && !set(DEVICE_SELECT_OFF.0)
+}
+
+/// Sets [`DEVICE_SELECT_OFF`] when [`device_select_unwanted`] says so.
+///
+/// # Safety
+///
+/// Changes the process environment, so it must run before any other thread
+/// exists (first thing in `main`): another thread reading the environment
+/// at the same time is undefined behaviour in glibc.
+pub unsafe fn quiet_device_select_when_headless() {
+    if device_select_unwanted(|name| std::env::var_os(name)) {
+        let (name, value) = DEVICE_SELECT_OFF;
+        // SAFETY: the caller guarantees that no other thread is running.
+        unsafe { std::env::set_var(name, value) };
+    }
+}
 
 /// An opened device with its queue and what it runs on.
 #[derive(Debug)]
@@ -92,4 +130,30 @@ pub(crate) fn describe(info: &wgpu::AdapterInfo) -> String {
 /// Whether a missing adapter may be tolerated ([`ALLOW_NO_GPU_ENV`] is `1`).
 pub(crate) fn no_gpu_allowed() -> bool {
     std::env::var(ALLOW_NO_GPU_ENV).is_ok_and(|v| v.trim() == "1")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn unwanted(vars: &[(&str, &str)]) -> bool {
+        device_select_unwanted(|name| {
+            vars.iter()
+                .find(|(n, _)| *n == name)
+                .map(|(_, v)| OsString::from(v))
+        })
+    }
+
+    #[test]
+    fn device_select_is_switched_off_only_without_a_session_or_a_choice() {
+        assert!(unwanted(&[]), "a headless machine");
+        assert!(unwanted(&[("XDG_RUNTIME_DIR", "")]), "set but empty");
+        assert!(!unwanted(&[("XDG_RUNTIME_DIR", "/run/user/1000")]));
+        assert!(!unwanted(&[("WAYLAND_DISPLAY", "wayland-0")]));
+        assert!(!unwanted(&[("MESA_VK_DEVICE_SELECT", "10de:2684")]));
+        assert!(
+            !unwanted(&[("NODEVICE_SELECT", "0")]),
+            "the user's value stays"
+        );
+    }
 }

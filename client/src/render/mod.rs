@@ -25,7 +25,10 @@ mod target;
 mod tests;
 mod uniform;
 
-pub use adapter::{ALLOW_NO_GPU_ENV, BACKEND_ENV};
+pub use adapter::{
+    ALLOW_NO_GPU_ENV, BACKEND_ENV, DEVICE_SELECT_OFF, device_select_unwanted,
+    quiet_device_select_when_headless,
+};
 pub(crate) use geometry::snorm4;
 pub use geometry::{Coverage, GpuVertex, pack_leaves};
 pub use instances::DEFAULT_COLOR;
