@@ -123,6 +123,21 @@ fn bench_build_reports_throughput_memory_and_what_the_machine_gave() {
     assert!(rate > 0.0 && rate.is_finite());
     assert!(number("vertices_per_second_build") >= rate);
     assert!(number("peak_rss_bytes_first_build") > 0.0);
+    // The first build's steps are its own: each took time, and together
+    // they fit in its import-and-build time.
+    let first = number("seconds_import_and_build_first");
+    let first_steps: Vec<f64> = ["import", "leaves", "tree", "layout"]
+        .map(|step| {
+            j["seconds_by_step_first"][step]
+                .as_f64()
+                .unwrap_or_else(|| panic!("first build's {step} missing: {j}"))
+        })
+        .to_vec();
+    assert!(first_steps.iter().all(|&s| s > 0.0), "{first_steps:?}");
+    assert!(
+        first_steps.iter().sum::<f64>() <= first,
+        "{first_steps:?} > {first}"
+    );
     // The machine's figures come from Linux's /proc and getrusage.
     if cfg!(target_os = "linux") {
         let threads = number("threads");

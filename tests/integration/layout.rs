@@ -59,6 +59,33 @@ fn the_file_is_the_same_on_any_thread_count() {
 }
 
 #[test]
+fn a_point_cloud_is_the_same_on_any_thread_count() {
+    // Point clouds are sized by nearest neighbours: the k-d tree's halves
+    // build on two threads from 16 Ki points, and the searches are split
+    // into tasks. A wavy sheet with every tenth point doubled.
+    let cloud = || {
+        let positions: Vec<DVec3> = (0..60_000u32)
+            .map(|i| {
+                let (x, y) = (f64::from(i % 250), f64::from(i / 250 % 240));
+                let jitter = f64::from(i.wrapping_mul(2_654_435_761) >> 20) / 4096.0;
+                DVec3::new(x + jitter * 0.3, y, (x * 0.05).sin() * 4.0 + jitter * 0.1)
+            })
+            .flat_map(|p| {
+                [p].into_iter()
+                    .chain((p.x as u32).is_multiple_of(10).then_some(p))
+            })
+            .collect();
+        build(Scene::single(Geometry::new(
+            "cloud",
+            positions,
+            Primitives::Points,
+        )))
+    };
+    let one = the_same_on_1_and_3_threads(cloud);
+    assert!(one.header.nodes > 60_000, "{} nodes", one.header.nodes);
+}
+
+#[test]
 fn the_header_counts_levels_with_the_root_as_one() {
     let one_point = Scene::single(Geometry::new("point", vec![DVec3::ONE], Primitives::Points));
     assert_eq!(build(one_point).header.levels, 1, "the root alone");

@@ -12,9 +12,12 @@
 //! they shade two-sided and are never backface-culled.
 //!
 //! The search is an exact k-nearest-neighbour query in a balanced, implicit
-//! k-d tree ([`KdTree`]), after identical points have been collapsed.
+//! k-d tree ([`KdTree`], with the running best in [`Nearest`]), after
+//! identical points have been collapsed. All of it but the collapse's last
+//! pass runs on all threads, and the result does not depend on their number.
 
 use glam::{DMat3, DVec3, Vec3};
+use rayon::prelude::*;
 
 use super::leaves::{Leaf, pack_normal, round_up_f32};
 
@@ -23,78 +26,121 @@ pub const RADIUS_NEIGHBOUR: usize = 4;
 /// Neighbours in the normal fit (the point itself included).
 pub const NORMAL_NEIGHBOURS: usize = 8;
 
+/// Neighbours each search finds: enough for the radius and the normal fit.
+const K: usize = if NORMAL_NEIGHBOURS > RADIUS_NEIGHBOUR + 1 {
+    NORMAL_NEIGHBOURS
+} else {
+    RADIUS_NEIGHBOUR + 1
+};
+
+/// Distinct points per parallel task of searches.
+const SEARCHES_PER_TASK: usize = 1 << 10;
+
 /// Fills radius, normal and cone of point leaves.
+///
+/// Every step but the collapse of identical points runs on all threads:
+/// the k-d tree's halves are built side by side, and the searches (the
+/// bulk of the work, one per distinct point) go in the tree's own order, so
+/// consecutive searches walk the same branches while they are in cache.
+/// Each search is independent, so the result does not depend on the thread
+/// count.
 pub fn size_points(leaves: &mut [Leaf], normals: Option<&[Vec3]>) {
     if leaves.is_empty() {
         return;
     }
     // Identical points collapse to one before the search, so a million
     // copies of one point cost a sort, not a million searches among copies.
-    let mut order: Vec<u32> = (0..leaves.len() as u32).collect();
-    let key = |i: u32| leaves[i as usize].position.to_array().map(f64::to_bits);
-    order.sort_unstable_by_key(|&i| key(i));
-    let mut unique: Vec<DVec3> = Vec::new();
+    // The sort is of the coordinates' bits themselves (not of indices into
+    // the leaves), so its comparisons read memory in order.
+    let mut keyed: Vec<([u64; 3], u32)> = leaves
+        .par_iter()
+        .zip(0..leaves.len() as u32)
+        .map(|(leaf, i)| (leaf.position.to_array().map(f64::to_bits), i))
+        .collect();
+    keyed.par_sort_unstable();
+    let mut distinct: Vec<Entry> = Vec::new();
     let mut unique_of = vec![0u32; leaves.len()];
-    for (n, &i) in order.iter().enumerate() {
-        if n == 0 || key(i) != key(order[n - 1]) {
-            unique.push(leaves[i as usize].position);
+    for (n, &(bits, i)) in keyed.iter().enumerate() {
+        if n == 0 || bits != keyed[n - 1].0 {
+            distinct.push(Entry {
+                position: DVec3::from_array(bits.map(f64::from_bits)),
+                id: distinct.len() as u32,
+            });
         }
-        unique_of[i as usize] = unique.len() as u32 - 1;
+        unique_of[i as usize] = distinct.len() as u32 - 1;
     }
-    drop(order);
-    let tree = KdTree::new(&unique);
-    let k = NORMAL_NEIGHBOURS.max(RADIUS_NEIGHBOUR + 1);
-    let mut neighbours = Vec::with_capacity(k);
-    let mut radii = Vec::with_capacity(unique.len());
-    let mut fitted = Vec::with_capacity(if normals.is_none() { unique.len() } else { 0 });
-    for &p in &unique {
-        tree.nearest(p, k, &mut neighbours);
-        // neighbours[0] is the point itself; the rest are distinct.
-        let r = neighbours
-            .get(RADIUS_NEIGHBOUR)
-            .or(neighbours.last())
-            .map_or(0.0, |(d2, _)| d2.sqrt());
-        radii.push(r);
-        if normals.is_none() {
-            fitted.push(fit_normal(&tree.points, &neighbours));
-        }
-    }
+    drop(keyed);
+    let tree = KdTree::new(distinct);
+    let fit = normals.is_none();
+    // (radius, fitted normal) of each distinct point, in the tree's order.
+    let found: Vec<(f64, Vec3)> = tree
+        .entries
+        .par_iter()
+        .with_min_len(SEARCHES_PER_TASK)
+        .map(|entry| {
+            let mut near = Nearest::default();
+            tree.search(entry.position, 0, tree.entries.len(), &mut near);
+            let neighbours = near.found();
+            // neighbours[0] is the point itself; the rest are distinct.
+            let r = neighbours
+                .get(RADIUS_NEIGHBOUR)
+                .or(neighbours.last())
+                .map_or(0.0, |(d2, _)| d2.sqrt());
+            let normal = if fit {
+                fit_normal(&tree.entries, neighbours)
+            } else {
+                Vec3::Z
+            };
+            (r, normal)
+        })
+        .collect();
     // An isolated outlier would otherwise draw a splat the size of the gap
     // around it: clamp to a few times the typical radius.
-    let mut sorted: Vec<f64> = radii.iter().copied().filter(|r| *r > 0.0).collect();
+    let mut sorted: Vec<f64> = found.iter().map(|f| f.0).filter(|r| *r > 0.0).collect();
     let cap = if sorted.is_empty() {
         f64::INFINITY
     } else {
         let mid = sorted.len() / 2;
         *sorted.select_nth_unstable_by(mid, f64::total_cmp).1 * 8.0
     };
-    for (i, leaf) in leaves.iter_mut().enumerate() {
-        let u = unique_of[i] as usize;
-        leaf.radius = round_up_f32(radii[u].min(cap));
-        let n = match normals {
-            Some(ns) => ns[i],
-            None => fitted[u],
-        };
-        let n = if n.z < 0.0 { -n } else { n };
-        leaf.normal = pack_normal(n);
-        leaf.cone = 255;
+    drop(sorted);
+    // Where each distinct point's result is: its place in the tree.
+    let mut slot_of = vec![0u32; found.len()];
+    for (slot, entry) in tree.entries.iter().enumerate() {
+        slot_of[entry.id as usize] = slot as u32;
     }
+    drop(tree);
+    leaves
+        .par_iter_mut()
+        .with_min_len(SEARCHES_PER_TASK)
+        .enumerate()
+        .for_each(|(i, leaf)| {
+            let (radius, fitted) = found[slot_of[unique_of[i] as usize] as usize];
+            leaf.radius = round_up_f32(radius.min(cap));
+            let n = match normals {
+                Some(ns) => ns[i],
+                None => fitted,
+            };
+            let n = if n.z < 0.0 { -n } else { n };
+            leaf.normal = pack_normal(n);
+            leaf.cone = 255;
+        });
 }
 
 /// Normal of the plane through the neighbours: the eigenvector of their
 /// covariance with the smallest eigenvalue (+Z when they do not span a plane).
-fn fit_normal(points: &[DVec3], neighbours: &[(f64, u32)]) -> Vec3 {
+fn fit_normal(entries: &[Entry], neighbours: &[(f64, u32)]) -> Vec3 {
     if neighbours.len() < 3 {
         return Vec3::Z;
     }
     let mean = neighbours
         .iter()
-        .map(|&(_, j)| points[j as usize])
+        .map(|&(_, j)| entries[j as usize].position)
         .sum::<DVec3>()
         / neighbours.len() as f64;
     let mut cov = DMat3::ZERO;
     for &(_, j) in neighbours {
-        let d = points[j as usize] - mean;
+        let d = entries[j as usize].position - mean;
         cov += DMat3::from_cols(d * d.x, d * d.y, d * d.z);
     }
     smallest_eigenvector(cov).map_or(Vec3::Z, |v| v.as_vec3())
@@ -148,78 +194,139 @@ pub fn smallest_eigenvector(m: DMat3) -> Option<DVec3> {
 /// along the range's longest axis sits at the middle, halves on either side.
 /// Balanced whatever the distribution, so no input makes a search slow.
 struct KdTree {
-    points: Vec<DVec3>,
+    entries: Vec<Entry>,
     /// Split axis of the range whose middle is at this index.
     axis: Vec<u8>,
+}
+
+/// A point of the tree and its index in the input.
+#[derive(Clone, Copy)]
+struct Entry {
+    position: DVec3,
+    id: u32,
 }
 
 /// Ranges this small are searched by brute force.
 const KD_LEAF: usize = 8;
 
+/// Ranges at least this large build their halves on two threads.
+const PARALLEL_BUILD: usize = 1 << 14;
+
 impl KdTree {
-    fn new(points: &[DVec3]) -> Self {
-        let mut tree = Self {
-            points: points.to_vec(),
-            axis: vec![0; points.len()],
-        };
-        let n = tree.points.len();
-        tree.build(0, n);
-        tree
+    /// The tree of `entries` (reordered).
+    fn new(mut entries: Vec<Entry>) -> Self {
+        let mut axis = vec![0; entries.len()];
+        Self::build(&mut entries, &mut axis);
+        Self { entries, axis }
     }
 
-    fn build(&mut self, lo: usize, hi: usize) {
-        if hi - lo <= KD_LEAF {
+    /// Puts the median along the longest axis of `entries` in the middle
+    /// (recording the axis there), and recurses into both halves.
+    fn build(entries: &mut [Entry], axis: &mut [u8]) {
+        let n = entries.len();
+        if n <= KD_LEAF {
             return;
         }
         let (mut min, mut max) = (DVec3::INFINITY, DVec3::NEG_INFINITY);
-        for p in &self.points[lo..hi] {
-            min = min.min(*p);
-            max = max.max(*p);
+        for e in entries.iter() {
+            min = min.min(e.position);
+            max = max.max(e.position);
         }
-        let axis = (max - min).max_position();
-        let mid = (lo + hi) / 2;
-        self.points[lo..hi].select_nth_unstable_by(mid - lo, |a, b| a[axis].total_cmp(&b[axis]));
-        self.axis[mid] = axis as u8;
-        self.build(lo, mid);
-        self.build(mid + 1, hi);
-    }
-
-    /// The `k` nearest points to `p` as (squared distance, index), nearest first.
-    fn nearest(&self, p: DVec3, k: usize, out: &mut Vec<(f64, u32)>) {
-        out.clear();
-        self.search(p, k, 0, self.points.len(), out);
-    }
-
-    fn offer(&self, p: DVec3, k: usize, i: usize, out: &mut Vec<(f64, u32)>) {
-        let d2 = self.points[i].distance_squared(p);
-        if out.len() == k && d2 >= out[k - 1].0 {
-            return;
+        let longest = (max - min).max_position();
+        let mid = n / 2;
+        entries.select_nth_unstable_by(mid, |a, b| {
+            a.position[longest].total_cmp(&b.position[longest])
+        });
+        axis[mid] = longest as u8;
+        let (left, right) = entries.split_at_mut(mid);
+        let (left_axis, right_axis) = axis.split_at_mut(mid);
+        let (right, right_axis) = (&mut right[1..], &mut right_axis[1..]);
+        if n >= PARALLEL_BUILD {
+            rayon::join(
+                || Self::build(left, left_axis),
+                || Self::build(right, right_axis),
+            );
+        } else {
+            Self::build(left, left_axis);
+            Self::build(right, right_axis);
         }
-        let at = out.partition_point(|(e, _)| *e <= d2);
-        out.insert(at, (d2, i as u32));
-        out.truncate(k);
     }
 
-    fn search(&self, p: DVec3, k: usize, lo: usize, hi: usize, out: &mut Vec<(f64, u32)>) {
+    /// Offers the entries `lo..hi` near `p` to `near`.
+    fn search(&self, p: DVec3, lo: usize, hi: usize, near: &mut Nearest) {
         if hi - lo <= KD_LEAF {
             for i in lo..hi {
-                self.offer(p, k, i, out);
+                near.offer(self.entries[i].position.distance_squared(p), i);
             }
             return;
         }
         let mid = (lo + hi) / 2;
         let axis = usize::from(self.axis[mid]);
-        self.offer(p, k, mid, out);
-        let delta = p[axis] - self.points[mid][axis];
-        let (near, far) = if delta < 0.0 {
+        let split = self.entries[mid].position;
+        let delta = p[axis] - split[axis];
+        let (near_half, far_half) = if delta < 0.0 {
             ((lo, mid), (mid + 1, hi))
         } else {
             ((mid + 1, hi), (lo, mid))
         };
-        self.search(p, k, near.0, near.1, out);
-        if out.len() < k || delta * delta < out[k - 1].0 {
-            self.search(p, k, far.0, far.1, out);
+        self.search(p, near_half.0, near_half.1, near);
+        // The split point and the far half lie at least |delta| away: once
+        // the near half has been searched, usually too far to matter.
+        if delta * delta < near.worst() {
+            near.offer(split.distance_squared(p), mid);
+            self.search(p, far_half.0, far_half.1, near);
         }
+    }
+}
+
+/// The [`K`] nearest entries seen so far, nearest first, in a fixed array:
+/// a search offers dozens of candidates and keeps a few.
+struct Nearest {
+    /// (squared distance, entry index); the first `len` are valid.
+    found: [(f64, u32); K],
+    len: usize,
+}
+
+impl Default for Nearest {
+    fn default() -> Self {
+        Self {
+            found: [(0.0, 0); K],
+            len: 0,
+        }
+    }
+}
+
+impl Nearest {
+    fn found(&self) -> &[(f64, u32)] {
+        &self.found[..self.len]
+    }
+
+    /// The squared distance a candidate must beat: infinite until full.
+    fn worst(&self) -> f64 {
+        if self.len < K {
+            f64::INFINITY
+        } else {
+            self.found[K - 1].0
+        }
+    }
+
+    /// Keeps entry `i` if it is among the nearest; after those at the same
+    /// distance, so earlier offers win ties.
+    fn offer(&mut self, d2: f64, i: usize) {
+        if d2 >= self.worst() {
+            return;
+        }
+        let mut at = if self.len < K {
+            self.len += 1;
+            self.len - 1
+        } else {
+            K - 1
+        };
+        while at > 0 && self.found[at - 1].0 > d2 {
+            self.found[at] = self.found[at - 1];
+            at -= 1;
+        }
+        self.found[at] = (d2, i as u32);
     }
 }
 
@@ -250,6 +357,36 @@ mod tests {
             // 4th nearest: 1 inside the grid, up to 2 at a corner.
             assert!(l.radius >= 1.0 && l.radius <= 2.0, "{}", l.radius);
             assert_eq!(l.cone, 255);
+        }
+    }
+
+    #[test]
+    fn searches_find_the_same_distances_as_brute_force() {
+        let mut rnd = crate::build::test_random(7);
+        // Clustered and on a coarse grid, so distances tie often.
+        let points: Vec<DVec3> = (0..3000)
+            .map(|i| {
+                let p = DVec3::new(rnd(), rnd(), rnd() * 0.1) * 20.0;
+                if i % 3 == 0 { p.round() } else { p }
+            })
+            .collect();
+        let entries = points.iter().zip(0..);
+        let tree = KdTree::new(
+            entries
+                .map(|(&position, id)| Entry { position, id })
+                .collect(),
+        );
+        for (slot, entry) in tree.entries.iter().enumerate().step_by(7) {
+            let mut near = Nearest::default();
+            tree.search(entry.position, 0, tree.entries.len(), &mut near);
+            let mut all: Vec<f64> = points
+                .iter()
+                .map(|q| q.distance_squared(entry.position))
+                .collect();
+            all.sort_by(f64::total_cmp);
+            let found: Vec<f64> = near.found().iter().map(|f| f.0).collect();
+            assert_eq!(found, all[..K], "search from entry {slot}");
+            assert_eq!(points[entry.id as usize], entry.position);
         }
     }
 

@@ -232,3 +232,15 @@ fn apply_radius_floor(leaves: &mut [leaves::Leaf], measured: &Measured) {
         }
     }
 }
+
+/// A deterministic source of numbers in [0, 1) for tests (xorshift64).
+#[cfg(test)]
+pub(crate) fn test_random(seed: u64) -> impl FnMut() -> f64 {
+    let mut x = seed;
+    move || {
+        x ^= x << 13;
+        x ^= x >> 7;
+        x ^= x << 17;
+        (x >> 11) as f64 / (1u64 << 53) as f64
+    }
+}

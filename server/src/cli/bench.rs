@@ -63,6 +63,7 @@ pub fn build(
     // one-off `build` command does; later repeats reuse some of what the
     // allocator kept. Both are reported.
     let first = total.first().copied().unwrap_or(0.0);
+    let first_steps = steps.each_ref().map(|s| s.first().copied().unwrap_or(0.0));
     let (t, b) = (median(&mut total), median(&mut build_only));
     let [import, leaves, tree, layout] = steps.map(|mut s| median(&mut s));
     let peak = peak_first;
@@ -80,6 +81,7 @@ pub fn build(
         "vertices_per_second_import_and_build": vertices as f64 / t,
         "vertices_per_second_build": vertices as f64 / b,
         "seconds_import_and_build_first": first,
+        "seconds_by_step_first": {"import": first_steps[0], "leaves": first_steps[1], "tree": first_steps[2], "layout": first_steps[3]},
         "vertices_per_second_import_and_build_first": vertices as f64 / first,
         "threads": rayon::current_num_threads(),
         "rss_at_start_bytes": rss_start,

@@ -406,13 +406,7 @@ mod tests {
 
     #[test]
     fn random_points_give_a_valid_tree_on_any_thread_count() {
-        let mut x = 12345u64;
-        let mut rnd = || {
-            x ^= x << 13;
-            x ^= x >> 7;
-            x ^= x << 17;
-            (x >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut rnd = crate::build::test_random(12345);
         let leaves: Vec<Leaf> = (0..120_000)
             .map(|_| leaf(DVec3::new(rnd(), rnd(), rnd() * 0.01)))
             .collect();
