@@ -13,6 +13,8 @@ echo "== build throughput (median of repeats, import + build, nothing written)"
 $bin bench build "$data/horse.ply" --repeats 7
 $bin bench build "$data/igea.ply" --repeats 7
 $bin bench build gen:island --param size=2048 --param trees=256 --repeats 3
+# A lidar point cloud: sized by nearest neighbours, not triangles.
+$bin bench build "$data/autzen_trim.las" --repeats 9
 
 echo "== file size (bytes per node, page headers and checksums included)"
 for f in "$data"/*.obj "$data"/*.ply "$data"/*.las "$data"/*.pdb gen:island gen:tree; do
