@@ -59,8 +59,13 @@ pub fn load(path: &Path) -> Result<Scene, ImportError> {
 /// parts and blocks everywhere).
 fn load_in_blocks(path: &Path, block_bytes: usize) -> Result<Scene, ImportError> {
     let mut file = File::open(path).map_err(|e| ImportError::io(path, e))?;
-    // A small file is one block of its own size, not a whole empty block.
-    let file_bytes = file.metadata().map_or(u64::MAX, |m| m.len());
+    // A small file is one block of its own size, not a whole empty block;
+    // a pipe has no size, and gets whole blocks.
+    let file_bytes = file
+        .metadata()
+        .ok()
+        .filter(|m| m.is_file())
+        .map_or(u64::MAX, |m| m.len());
     let block_bytes = block_bytes.min(usize::try_from(file_bytes).unwrap_or(usize::MAX).max(1));
     let mut obj = Obj::default();
     let mut block: Vec<u8> = Vec::new();
