@@ -8,7 +8,7 @@ use glam::{DAffine3, DVec3};
 use crate::{build, resident};
 
 /// A deterministic jittered grid mesh: `n` x `n` vertices `spacing` apart.
-fn grid_mesh(n: u32, spacing: f64) -> Geometry {
+pub(crate) fn grid_mesh(n: u32, spacing: f64) -> Geometry {
     let mut state = 0x9e37_79b9_7f4a_7c15u64;
     let mut jitter = || {
         state = state

@@ -8,33 +8,38 @@ use farfield_server::import::{Params, load_input};
 use farfield_server::scene::{Geometry, Primitives, Scene};
 use glam::DVec3;
 
-/// Every step begun, with its total and the sum of its parts.
+/// A step begun: its name, its total, the sum of its parts, and how many
+/// (non-empty) parts were reported.
+type Step = (&'static str, u64, u64, usize);
+
+/// Every step begun.
 #[derive(Default)]
-struct Recorder(Mutex<Vec<(&'static str, u64, u64)>>);
+struct Recorder(Mutex<Vec<Step>>);
 
 impl Progress for Recorder {
     fn begin(&self, step: &'static str, total: u64) {
-        self.0.lock().unwrap().push((step, total, 0));
+        self.0.lock().unwrap().push((step, total, 0, 0));
     }
     fn advance(&self, done: u64) {
         let mut steps = self.0.lock().unwrap();
         let current = steps.last_mut().expect("advance before any step began");
         current.2 += done;
+        current.3 += usize::from(done > 0);
     }
 }
 
 /// The steps a build reported, and its stats.
-fn steps_of(scene: Scene) -> (Vec<(&'static str, u64, u64)>, BuildStats) {
+fn steps_of(scene: Scene) -> (Vec<Step>, BuildStats) {
     let recorder = Recorder::default();
     let (_, stats) =
         build_spheres_reporting(scene, &BuildOptions::default(), &recorder).expect("build");
     (recorder.0.into_inner().unwrap(), stats)
 }
 
-fn assert_complete(steps: &[(&'static str, u64, u64)], stats: &BuildStats) {
+fn assert_complete(steps: &[Step], stats: &BuildStats) {
     let names: Vec<_> = steps.iter().map(|s| s.0).collect();
     assert_eq!(names, ["leaves", "tree", "layout"]);
-    for &(step, total, done) in steps {
+    for &(step, total, done, _) in steps {
         assert_eq!(done, total, "{step}: parts add up to {done} of {total}");
     }
     assert_eq!(steps[0].1, stats.input_vertices, "leaves count vertices");
@@ -50,6 +55,19 @@ fn an_instanced_scene_reports_every_step_to_its_end() {
     assert_complete(&steps, &stats);
     // Big enough that the tree is built as several tasks.
     assert!(steps[1].1 > 100_000, "{steps:?}");
+}
+
+#[test]
+fn a_single_mesh_reports_its_leaves_as_they_are_sized() {
+    // 300 x 300 vertices, about 180,000 triangles, no normals: each of the
+    // two vertex ranges (one per thread) walks the triangles twice, and reports
+    // after each 64 Ki of them, so at least 2 x 2 x 3 parts.
+    let scene = Scene::single(crate::extremes::grid_mesh(300, 1.0));
+    let two_threads = rayon::ThreadPoolBuilder::new().num_threads(2).build();
+    let (steps, stats) = two_threads.expect("pool").install(|| steps_of(scene));
+    assert_complete(&steps, &stats);
+    let (_, _, _, parts) = steps[0];
+    assert!(parts >= 12, "the leaves step came in {parts} parts");
 }
 
 #[test]

@@ -78,9 +78,8 @@ pub fn make_leaves(
         && geometries.len() == 1
         && let Some(geometry) = geometries.pop()
     {
-        let (local, unreferenced) = local_leaves(geometry, has_color);
+        let (local, unreferenced) = local_leaves(geometry, has_color, progress);
         stats.unreferenced_vertices = unreferenced;
-        progress.advance(total);
         return (local, stats);
     }
     let mut leaves = Vec::with_capacity(total as usize);
@@ -93,19 +92,22 @@ pub fn make_leaves(
             continue;
         }
         let vertices = geometry.positions.len() as u64 * transforms.len() as u64;
-        let (local, unreferenced) = local_leaves(geometry, has_color);
+        // `local_leaves` reports the geometry's own vertices; placing its
+        // instances accounts for the rest.
+        let placed = vertices - geometry.positions.len() as u64;
+        let (local, unreferenced) = local_leaves(geometry, has_color, progress);
         stats.unreferenced_vertices += unreferenced * transforms.len() as u64;
         if let [only] = transforms[..]
             && only == DAffine3::IDENTITY
         {
             leaves.extend_from_slice(&local);
-            progress.advance(vertices);
+            progress.advance(placed);
             continue;
         }
         // Instances are independent: place them on all threads, each into
         // its own slice of the output (no intermediate copies).
         let Some(&filler) = local.first() else {
-            progress.advance(vertices);
+            progress.advance(placed);
             continue;
         };
         let start = leaves.len();
@@ -114,7 +116,7 @@ pub fn make_leaves(
             .par_chunks_mut(local.len())
             .zip(transforms.par_iter())
             .for_each(|(out, &world_from_local)| place(&local, world_from_local, out));
-        progress.advance(vertices);
+        progress.advance(placed);
     }
     (leaves, stats)
 }
@@ -151,8 +153,10 @@ pub(crate) fn max_stretch(t: DAffine3) -> f64 {
 }
 
 /// Leaves of one geometry in its local frame, and how many vertices were
-/// left out for not being used by any triangle.
-fn local_leaves(geometry: Geometry, has_color: bool) -> (Vec<Leaf>, u64) {
+/// left out for not being used by any triangle. Reports the geometry's
+/// vertices to `progress`: a mesh's as its triangles are walked, so a
+/// single large scan's bar moves too.
+fn local_leaves(geometry: Geometry, has_color: bool, progress: &dyn Progress) -> (Vec<Leaf>, u64) {
     let Geometry {
         positions,
         normals,
@@ -181,7 +185,7 @@ fn local_leaves(geometry: Geometry, has_color: bool) -> (Vec<Leaf>, u64) {
             // Sized from the compact positions, before the leaves exist:
             // the triangle walks read 24 bytes a corner, not a 40-byte leaf,
             // and each leaf is then written once, whole, on all threads.
-            let sizes = size_from_triangles(&positions, &triangles, normals);
+            let sizes = size_from_triangles(&positions, &triangles, normals, progress);
             // Released, not kept for reuse: the leaves, allocated next, are
             // larger and cannot reuse the block, which would sit idle at
             // this step's memory peak.
@@ -202,6 +206,7 @@ fn local_leaves(geometry: Geometry, has_color: bool) -> (Vec<Leaf>, u64) {
             drop(positions);
             drop(colors);
             super::knn::size_points(&mut leaves, normals.as_deref());
+            progress.advance(leaves.len() as u64);
             (leaves, 0)
         }
         Primitives::Spheres(radii) => {
@@ -211,6 +216,7 @@ fn local_leaves(geometry: Geometry, has_color: bool) -> (Vec<Leaf>, u64) {
                     ..bare(i)
                 })
                 .collect();
+            progress.advance(positions.len() as u64);
             (leaves, 0)
         }
     }
@@ -218,6 +224,9 @@ fn local_leaves(geometry: Geometry, has_color: bool) -> (Vec<Leaf>, u64) {
 
 /// Leaves per parallel task where each leaf is little work.
 const LEAVES_PER_TASK: usize = 1 << 12;
+
+/// Triangles walked between progress reports: a few milliseconds of work.
+const WALK_CHUNK: usize = 1 << 16;
 
 /// Vertices no triangle touched carry a negative radius until dropped.
 fn is_unreferenced(leaf: &Leaf) -> bool {
@@ -272,6 +281,7 @@ fn size_from_triangles(
     positions: &[DVec3],
     triangles: &[[u32; 3]],
     normals: Option<Vec<Vec3>>,
+    progress: &dyn Progress,
 ) -> VertexSizes {
     // Working memory is a squared radius, a normal and a cosine per vertex.
     let n = positions.len();
@@ -287,13 +297,29 @@ fn size_from_triangles(
         .enumerate()
         .for_each(|(part, ((radius_squared, normal), min_cos))| {
             let first = part * range_len;
+            let share = radius_squared.len() as u64;
             let mut range = VertexRange {
                 first,
                 radius_squared,
                 normal,
                 min_cos,
             };
-            range.size(positions, triangles, have_normals);
+            // This range's vertices, reported in step with its walks.
+            let walks = if have_normals { 1 } else { 2 };
+            let steps = (triangles.len() * walks) as u128;
+            let (mut walked, mut reported) = (0u128, 0u64);
+            let mut report = |done: usize| {
+                walked += done as u128;
+                let now = (u128::from(share) * walked / steps.max(1)) as u64;
+                if now > reported {
+                    progress.advance(now - reported);
+                    reported = now;
+                }
+            };
+            range.size(positions, triangles, have_normals, &mut report);
+            if share > reported {
+                progress.advance(share - reported);
+            }
         });
     // The square root and the round-up are monotonic, so taking them once,
     // of the largest square, gives the largest of the triangles' rounded-up
@@ -340,15 +366,39 @@ impl VertexRange<'_> {
         })
     }
 
-    fn size(&mut self, positions: &[DVec3], triangles: &[[u32; 3]], have_normals: bool) {
+    /// Sizes the range's vertices, calling `walked` with the number of
+    /// triangles walked every [`WALK_CHUNK`] (for progress).
+    fn size(
+        &mut self,
+        positions: &[DVec3],
+        triangles: &[[u32; 3]],
+        have_normals: bool,
+        walked: &mut dyn FnMut(usize),
+    ) {
         if have_normals {
             // The vertex normals are known before any triangle is seen, so
             // one walk gives both the radius and the cone: half the
             // triangle work of the walks below.
             self.normalize_normals();
-            self.size_and_cone(positions, triangles);
+            for chunk in triangles.chunks(WALK_CHUNK) {
+                self.size_and_cone(positions, chunk);
+                walked(chunk.len());
+            }
             return;
         }
+        for chunk in triangles.chunks(WALK_CHUNK) {
+            self.radius_and_normal_sum(positions, chunk);
+            walked(chunk.len());
+        }
+        self.normalize_normals();
+        for chunk in triangles.chunks(WALK_CHUNK) {
+            self.cone(positions, chunk);
+            walked(chunk.len());
+        }
+    }
+
+    /// First walk without input normals: radii, and face normals summed.
+    fn radius_and_normal_sum(&mut self, positions: &[DVec3], triangles: &[[u32; 3]]) {
         for tri in triangles {
             let owned = self.owned(tri);
             if owned == [None; 3] {
@@ -362,10 +412,12 @@ impl VertexRange<'_> {
                 self.normal[v] += face;
             }
         }
-        self.normalize_normals();
-        // Cone: the widest angle between a vertex normal and its faces'
-        // normals, tracked as the smallest cosine (one acos per vertex, not
-        // per corner).
+    }
+
+    /// Second walk: the cone, the widest angle between a vertex normal and
+    /// its faces' normals, tracked as the smallest cosine (one acos per
+    /// vertex, not per corner).
+    fn cone(&mut self, positions: &[DVec3], triangles: &[[u32; 3]]) {
         for tri in triangles {
             let owned = self.owned(tri);
             if owned == [None; 3] {
@@ -594,7 +646,7 @@ mod tests {
     #[test]
     fn a_vertex_gets_the_largest_rounded_up_radius_of_its_triangles() {
         let (positions, triangles) = bumpy_mesh();
-        let sizes = size_from_triangles(&positions, &triangles, None);
+        let sizes = size_from_triangles(&positions, &triangles, None, &Silent);
         // The definition, per triangle: its bounding radius rounded up to
         // f32, the largest over the vertex's triangles.
         let mut expected = vec![-1.0f32; positions.len()];
@@ -632,7 +684,7 @@ mod tests {
     fn cones_from_one_walk_and_from_two_walks_follow_their_definition() {
         let (positions, triangles) = bumpy_mesh();
         // Two walks: the normals summed from the faces, then the cones.
-        let computed = size_from_triangles(&positions, &triangles, None);
+        let computed = size_from_triangles(&positions, &triangles, None, &Silent);
         let expected = min_cos_by_definition(&positions, &triangles, &computed.normal);
         assert!(computed.min_cos == expected, "two-walk cones differ");
         assert!(
@@ -640,7 +692,12 @@ mod tests {
             "cones too narrow to test"
         );
         // One walk, with those normals given as the input's.
-        let given = size_from_triangles(&positions, &triangles, Some(computed.normal.clone()));
+        let given = size_from_triangles(
+            &positions,
+            &triangles,
+            Some(computed.normal.clone()),
+            &Silent,
+        );
         let expected = min_cos_by_definition(&positions, &triangles, &given.normal);
         assert!(given.min_cos == expected, "one-walk cones differ");
         assert!(

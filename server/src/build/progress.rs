@@ -3,10 +3,10 @@
 //! The sphere builder's steps (leaves, tree, layout) each announce their
 //! amount of work with [`Progress::begin`] and report finished parts with
 //! [`Progress::advance`]: the leaves by vertices, the tree by leaves, the
-//! layout by nodes placed. Parts are coarse (a geometry, one of the tree's
-//! about 64 tasks, one of the layout's windows), so reporting costs nothing
-//! next to the work. The leaves of a single geometry (a scanned mesh) are
-//! one part, so that step, about a tenth of a build, jumps from 0 to 100 %.
+//! layout by nodes placed. Parts are coarse (64 Ki triangles walked by one
+//! thread, a geometry's points or instances, one of the tree's about 64
+//! tasks, one of the layout's windows), so reporting costs nothing next to
+//! the work, and a single large scan's bar moves in every step.
 //! The command line turns it into a bar with a percentage and an estimate
 //! of the time left, which a build of many minutes needs.
 
