@@ -13,8 +13,9 @@
 //!
 //! The search is an exact k-nearest-neighbour query in a balanced, implicit
 //! k-d tree ([`KdTree`], with the running best in [`Nearest`]), after
-//! identical points have been collapsed. All of it but the collapse's last
-//! pass runs on all threads, and the result does not depend on their number.
+//! identical points have been collapsed. All of it but two linear passes
+//! (the collapse's, and the one finding each point's place in the tree)
+//! runs on all threads, and the result does not depend on their number.
 
 use glam::{DMat3, DVec3, Vec3};
 use rayon::prelude::*;
@@ -38,12 +39,9 @@ const SEARCHES_PER_TASK: usize = 1 << 10;
 
 /// Fills radius, normal and cone of point leaves.
 ///
-/// Every step but the collapse of identical points runs on all threads:
-/// the k-d tree's halves are built side by side, and the searches (the
-/// bulk of the work, one per distinct point) go in the tree's own order, so
-/// consecutive searches walk the same branches while they are in cache.
-/// Each search is independent, so the result does not depend on the thread
-/// count.
+/// The searches (the bulk of the work, one per distinct point) go in the
+/// tree's own order, so consecutive searches walk the same branches while
+/// they are in cache.
 pub fn size_points(leaves: &mut [Leaf], normals: Option<&[Vec3]>) {
     if leaves.is_empty() {
         return;
@@ -193,7 +191,7 @@ pub fn smallest_eigenvector(m: DMat3) -> Option<DVec3> {
 
 /// [`smallest_eigenvector`] by cyclic Jacobi rotations: slower, but well
 /// defined for repeated eigenvalues.
-pub fn smallest_eigenvector_jacobi(m: DMat3) -> Option<DVec3> {
+fn smallest_eigenvector_jacobi(m: DMat3) -> Option<DVec3> {
     let mut a = m.to_cols_array_2d();
     let scale = a.iter().flatten().fold(0.0f64, |s, v| s.max(v.abs()));
     if !(scale.is_finite() && scale > 0.0) {

@@ -20,7 +20,7 @@ use rayon::prelude::*;
 
 pub use farfield_protocol::octahedral::{pack_normal, unpack_normal};
 
-use super::progress::Progress;
+use super::progress::{Portion, Progress};
 use crate::scene::{Geometry, Primitives, Rgb8, Scene};
 
 /// Color given to geometry without colors in a scene where others have them.
@@ -290,6 +290,8 @@ fn size_from_triangles(
     let mut radius_squared = vec![-1.0f64; n];
     let mut min_cos = vec![1.0f32; n];
     let range_len = n.div_ceil(rayon::current_num_threads().max(1)).max(1 << 14);
+    // Each range walks every triangle once with input normals, else twice.
+    let walk_work = triangles.len() as u64 * if have_normals { 1 } else { 2 };
     radius_squared
         .par_chunks_mut(range_len)
         .zip(normal.par_chunks_mut(range_len))
@@ -297,29 +299,16 @@ fn size_from_triangles(
         .enumerate()
         .for_each(|(part, ((radius_squared, normal), min_cos))| {
             let first = part * range_len;
+            // This range's vertices, reported in step with its walks.
             let share = radius_squared.len() as u64;
+            let mut walked = Portion::new(progress, share, walk_work);
             let mut range = VertexRange {
                 first,
                 radius_squared,
                 normal,
                 min_cos,
             };
-            // This range's vertices, reported in step with its walks.
-            let walks = if have_normals { 1 } else { 2 };
-            let steps = (triangles.len() * walks) as u128;
-            let (mut walked, mut reported) = (0u128, 0u64);
-            let mut report = |done: usize| {
-                walked += done as u128;
-                let now = (u128::from(share) * walked / steps.max(1)) as u64;
-                if now > reported {
-                    progress.advance(now - reported);
-                    reported = now;
-                }
-            };
-            range.size(positions, triangles, have_normals, &mut report);
-            if share > reported {
-                progress.advance(share - reported);
-            }
+            range.size(positions, triangles, have_normals, &mut walked);
         });
     // The square root and the round-up are monotonic, so taking them once,
     // of the largest square, gives the largest of the triangles' rounded-up
@@ -366,14 +355,14 @@ impl VertexRange<'_> {
         })
     }
 
-    /// Sizes the range's vertices, calling `walked` with the number of
-    /// triangles walked every [`WALK_CHUNK`] (for progress).
+    /// Sizes the range's vertices, telling `walked` every [`WALK_CHUNK`]
+    /// triangles.
     fn size(
         &mut self,
         positions: &[DVec3],
         triangles: &[[u32; 3]],
         have_normals: bool,
-        walked: &mut dyn FnMut(usize),
+        walked: &mut Portion,
     ) {
         if have_normals {
             // The vertex normals are known before any triangle is seen, so
@@ -382,18 +371,18 @@ impl VertexRange<'_> {
             self.normalize_normals();
             for chunk in triangles.chunks(WALK_CHUNK) {
                 self.size_and_cone(positions, chunk);
-                walked(chunk.len());
+                walked.did(chunk.len() as u64);
             }
             return;
         }
         for chunk in triangles.chunks(WALK_CHUNK) {
             self.radius_and_normal_sum(positions, chunk);
-            walked(chunk.len());
+            walked.did(chunk.len() as u64);
         }
         self.normalize_normals();
         for chunk in triangles.chunks(WALK_CHUNK) {
             self.cone(positions, chunk);
-            walked(chunk.len());
+            walked.did(chunk.len() as u64);
         }
     }
 

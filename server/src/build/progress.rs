@@ -27,3 +27,47 @@ impl Progress for Silent {
     fn begin(&self, _step: &'static str, _total: u64) {}
     fn advance(&self, _done: u64) {}
 }
+
+/// A part of the current step worth `units`, reported in proportion as
+/// `work` of its own measure gets done ([`Portion::did`]): how a part
+/// counted in triangles walked moves a bar counted in vertices. What is
+/// left is reported when it is dropped, so the step's parts always add up.
+pub(crate) struct Portion<'a> {
+    progress: &'a dyn Progress,
+    units: u64,
+    work: u128,
+    done: u128,
+    reported: u64,
+}
+
+impl<'a> Portion<'a> {
+    pub fn new(progress: &'a dyn Progress, units: u64, work: u64) -> Self {
+        Self {
+            progress,
+            units,
+            work: u128::from(work.max(1)),
+            done: 0,
+            reported: 0,
+        }
+    }
+
+    /// `work` more of the part is done.
+    pub fn did(&mut self, work: u64) {
+        self.done += u128::from(work);
+        // units * done / work, in 128 bits: both factors can pass 2^32.
+        let now =
+            (u128::from(self.units) * self.done / self.work).min(u128::from(self.units)) as u64;
+        if now > self.reported {
+            self.progress.advance(now - self.reported);
+            self.reported = now;
+        }
+    }
+}
+
+impl Drop for Portion<'_> {
+    fn drop(&mut self) {
+        if self.units > self.reported {
+            self.progress.advance(self.units - self.reported);
+        }
+    }
+}

@@ -17,6 +17,8 @@ mod off;
 mod params;
 mod pdb;
 mod ply;
+#[cfg(test)]
+mod test_file;
 
 use std::path::{Path, PathBuf};
 

@@ -283,15 +283,10 @@ fn index(word: &[u8], limit: u64) -> Result<u32, String> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use std::sync::atomic::{AtomicUsize, Ordering};
+    use crate::import::test_file::TestFile;
 
     fn load_text(text: &str) -> Result<Geometry, ImportError> {
-        static N: AtomicUsize = AtomicUsize::new(0);
-        let n = N.fetch_add(1, Ordering::Relaxed);
-        let path = std::env::temp_dir().join(format!("ff-off-{}-{n}.off", std::process::id()));
-        std::fs::write(&path, text).unwrap();
-        let result = load(&path);
-        std::fs::remove_file(&path).unwrap();
+        let result = load(TestFile::new("t.off", text).path());
         result.map(|s| s.geometries.into_iter().next().unwrap())
     }
 
@@ -370,10 +365,8 @@ mod tests {
 
     #[test]
     fn nan_is_rejected_by_validate() {
-        let path = std::env::temp_dir().join(format!("ff-off-nan-{}.off", std::process::id()));
-        std::fs::write(&path, "OFF\n3 1 0\n0 0 0\n0 inf 0\n0 1 0\n3 0 1 2\n").unwrap();
-        let e = crate::import::load_input(path.to_str().unwrap(), &Default::default()).unwrap_err();
-        std::fs::remove_file(&path).unwrap();
+        let file = TestFile::new("nan.off", "OFF\n3 1 0\n0 0 0\n0 inf 0\n0 1 0\n3 0 1 2\n");
+        let e = file.load_input().unwrap_err();
         assert!(
             e.to_string()
                 .contains("vertex 1: coordinate is not a finite number"),

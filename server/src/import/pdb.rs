@@ -136,19 +136,14 @@ fn rgb(c: u32) -> Rgb8 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use std::sync::atomic::{AtomicUsize, Ordering};
+    use crate::import::test_file::TestFile;
 
     fn color(element: &str) -> Rgb8 {
         rgb(style(element).1)
     }
 
     fn load_text(text: &str) -> Result<Geometry, ImportError> {
-        static N: AtomicUsize = AtomicUsize::new(0);
-        let n = N.fetch_add(1, Ordering::Relaxed);
-        let path = std::env::temp_dir().join(format!("ff-pdb-{}-{n}.pdb", std::process::id()));
-        std::fs::write(&path, text).unwrap();
-        let result = load(&path);
-        std::fs::remove_file(&path).unwrap();
+        let result = load(TestFile::new("t.pdb", text).path());
         result.map(|s| s.geometries.into_iter().next().unwrap())
     }
 
@@ -235,19 +230,16 @@ mod tests {
         );
         // Short, odd and non-UTF-8 lines do not panic.
         assert!(load_text("ATOM\nHETATM \u{e9}\u{e9}\u{e9}\n\u{0}\n").is_err());
-        let path = std::env::temp_dir().join(format!("ff-pdb-nan-{}.pdb", std::process::id()));
-        std::fs::write(&path, atom("HETATM", " O", "", ["NaN", "0", "0"], "O")).unwrap();
-        let e = crate::import::load_input(path.to_str().unwrap(), &Default::default()).unwrap_err();
-        std::fs::remove_file(&path).unwrap();
+        let nan = atom("HETATM", " O", "", ["NaN", "0", "0"], "O");
+        let e = TestFile::new("nan.pdb", nan).load_input().unwrap_err();
         assert!(
             e.to_string()
                 .contains("vertex 0: coordinate is not a finite number"),
             "{e}"
         );
-        let path = std::env::temp_dir().join(format!("ff-pdb-empty-{}.pdb", std::process::id()));
-        std::fs::write(&path, "HEADER\nEND\n").unwrap();
-        let e = crate::import::load_input(path.to_str().unwrap(), &Default::default()).unwrap_err();
-        std::fs::remove_file(&path).unwrap();
+        let e = TestFile::new("empty.pdb", "HEADER\nEND\n")
+            .load_input()
+            .unwrap_err();
         assert!(matches!(e, ImportError::Empty { .. }));
     }
 }

@@ -147,8 +147,12 @@ impl Obj {
             .zip(&starts)
             .map(|(r, start)| part::parse(&block[r.clone()], start))
             .collect();
-        for result in parsed {
-            self.append(result?);
+        for (result, count) in parsed.into_iter().zip(&counts) {
+            let part = result?;
+            // The offsets given to later parts came from the counting pass.
+            debug_assert_eq!(part.positions.len() as u64, count.vertices);
+            debug_assert_eq!(part.normals.len() as u64, count.normals);
+            self.append(part);
         }
         self.lines = before.lines;
         Ok(())
@@ -222,19 +226,15 @@ impl Obj {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use std::sync::atomic::{AtomicUsize, Ordering};
+    use crate::import::test_file::TestFile;
 
     fn load_text(text: &str) -> Result<Geometry, ImportError> {
         load_text_in_blocks(text, BLOCK_BYTES)
     }
 
     fn load_text_in_blocks(text: &str, block_bytes: usize) -> Result<Geometry, ImportError> {
-        static N: AtomicUsize = AtomicUsize::new(0);
-        let n = N.fetch_add(1, Ordering::Relaxed);
-        let path = std::env::temp_dir().join(format!("ff-obj-{}-{n}.obj", std::process::id()));
-        std::fs::write(&path, text).unwrap();
-        let result = load_in_blocks(&path, block_bytes);
-        std::fs::remove_file(&path).unwrap();
+        let file = TestFile::new("t.obj", text);
+        let result = load_in_blocks(file.path(), block_bytes);
         result.map(|s| s.geometries.into_iter().next().unwrap())
     }
 
@@ -377,10 +377,8 @@ mod tests {
 
     #[test]
     fn nan_is_rejected_by_validate() {
-        let path = std::env::temp_dir().join(format!("ff-obj-nan-{}.obj", std::process::id()));
-        std::fs::write(&path, "v 0 0 0\nv NaN 0 0\nv 0 1 0\nf 1 2 3\n").unwrap();
-        let e = crate::import::load_input(path.to_str().unwrap(), &Default::default()).unwrap_err();
-        std::fs::remove_file(&path).unwrap();
+        let file = TestFile::new("nan.obj", "v 0 0 0\nv NaN 0 0\nv 0 1 0\nf 1 2 3\n");
+        let e = file.load_input().unwrap_err();
         assert!(
             e.to_string()
                 .contains("vertex 1: coordinate is not a finite number"),

@@ -910,24 +910,15 @@ impl Strip {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use std::sync::atomic::{AtomicUsize, Ordering};
-
-    fn temp(name: &str, bytes: &[u8]) -> std::path::PathBuf {
-        static N: AtomicUsize = AtomicUsize::new(0);
-        let n = N.fetch_add(1, Ordering::Relaxed);
-        let path = std::env::temp_dir().join(format!("ff-ply-{}-{n}-{name}", std::process::id()));
-        std::fs::write(&path, bytes).unwrap();
-        path
-    }
+    use crate::import::test_file::TestFile;
 
     /// Loads `bytes` as a file, checking that a mapped and a read binary
     /// body give the same geometry or the same error: every test of the
     /// importer covers both.
     fn load_bytes(bytes: &[u8]) -> Result<Geometry, ImportError> {
-        let path = temp("t.ply", bytes);
-        let mapped = load_from(&path, true);
-        let read = load_from(&path, false);
-        std::fs::remove_file(&path).unwrap();
+        let file = TestFile::new("t.ply", bytes);
+        let mapped = load_from(file.path(), true);
+        let read = load_from(file.path(), false);
         match (&mapped, &read) {
             (Ok(m), Ok(r)) => assert_eq!(m, r, "mapped and read bodies differ"),
             (Err(m), Err(r)) => assert_eq!(m.to_string(), r.to_string()),
@@ -1298,7 +1289,8 @@ mod tests {
     #[test]
     fn a_pipe_is_read_instead_of_mapped() {
         // A named pipe cannot be mapped: the body must be read instead.
-        let path = temp("pipe.ply", b"");
+        let fifo = TestFile::new("pipe.ply", b"");
+        let path = fifo.path().to_path_buf();
         std::fs::remove_file(&path).unwrap();
         let c_path = std::ffi::CString::new(path.to_str().unwrap()).unwrap();
         // SAFETY: a valid NUL-terminated path.
@@ -1310,7 +1302,6 @@ mod tests {
         };
         let piped = load(&path);
         writer.join().unwrap().unwrap();
-        std::fs::remove_file(&path).unwrap();
         let piped = piped.unwrap().geometries.remove(0);
         let from_file = load_bytes(&bytes).unwrap();
         assert_eq!(piped.positions, from_file.positions);
@@ -1325,9 +1316,7 @@ mod tests {
     fn nan_is_rejected_by_validate() {
         let text = "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n\
             property float z\nend_header\n0 0 0\nnan 1 0\n0 0 1\n";
-        let path = temp("nan.ply", text.as_bytes());
-        let e = crate::import::load_input(path.to_str().unwrap(), &Default::default()).unwrap_err();
-        std::fs::remove_file(&path).unwrap();
+        let e = TestFile::new("nan.ply", text).load_input().unwrap_err();
         assert!(
             e.to_string()
                 .contains("vertex 1: coordinate is not a finite number"),
