@@ -263,7 +263,7 @@ impl Hierarchy {
 
     /// The record of node `local` in a resident page.
     #[inline]
-    pub(crate) fn record(&self, page: &ResidentPage, local: usize) -> NodeRecord {
+    pub fn record(&self, page: &ResidentPage, local: usize) -> NodeRecord {
         let nb = self.header.node_bytes as usize;
         let mut word = [0u8; 8];
         word.copy_from_slice(&page.records[local * nb..local * nb + 8]);
@@ -277,7 +277,7 @@ impl Hierarchy {
 
     /// Breadth-first index of the first child of node `local` of `page`.
     #[inline]
-    pub(crate) fn first_child(page: &ResidentPage, local: usize) -> u64 {
+    pub fn first_child(page: &ResidentPage, local: usize) -> u64 {
         page.header.first_child + u64::from(page.child_offset[local])
     }
 
@@ -335,7 +335,7 @@ impl Hierarchy {
     /// True when a sibling group lies wholly inside `page` (always, in a
     /// well-formed file; checked so a bad one cannot index out of bounds).
     #[inline]
-    pub(crate) fn group_fits(page: &ResidentPage, first: u64, count: usize) -> bool {
+    pub fn group_fits(page: &ResidentPage, first: u64, count: usize) -> bool {
         first >= page.header.first_node
             && first + count as u64 <= page.header.first_node + u64::from(page.header.node_count)
     }

@@ -1,8 +1,8 @@
 //! farfield-protocol: the bytes both sides agree on.
 //!
 //! No async runtime, no GPU: this crate is what the server writes and the
-//! client reads, plus a CPU reference decoder and traversal that tests and
-//! the client share.
+//! client reads, plus the CPU reference decoder that traversal walks
+//! (the traversals themselves are `farfield-traverse`).
 //!
 //! - [`file`]: the paged hierarchy file's [`file::FileHeader`] and
 //!   [`file::PageEntry`] directory (layout in `FORMAT.md`).
@@ -12,15 +12,14 @@
 //!   to the parent (13 bits), normal (14 bits), cone (2 bits), 5-6-5 color.
 //! - [`cube_codec`]: the color-cube octree's cell record, clustered
 //!   sub-cubes and cell-relative leaf geometry (Chamberlain et al.).
-//! - [`cube_traverse`]: the cube octree's `Render(cell)`: cube faces where
-//!   a cell is smaller than `eps` pixels, leaf triangles elsewhere.
 //! - [`shading`]: the fixed light the cube builder bakes in and the
 //!   client's geometry pass repeats; [`octahedral`]: 32-bit unit normals.
 //! - [`camera`]: a view with f64 frustum planes and projected-size math.
-//! - [`traverse`]: the reference traversal that turns resident pages and a
-//!   camera into a cut (splats to draw) and a list of wanted pages.
 //! - [`hierarchy`]: [`hierarchy::Hierarchy`], a header plus whichever pages are
 //!   resident, the one type traversal walks.
+//! - [`paged_file`]: [`paged_file::PagedFile`], a whole file in memory as
+//!   builders make it, and [`paged_file::read_image`], a file's bytes read
+//!   into a fully resident hierarchy.
 //! - [`messages`]: the websocket session's [`messages::ClientMessage`] and
 //!   [`messages::ServerMessage`]; [`codec`]: their bytes (bincode 2, in one
 //!   module so it can be swapped).
@@ -28,15 +27,14 @@
 pub mod camera;
 pub mod codec;
 pub mod cube_codec;
-pub mod cube_traverse;
 pub mod file;
 pub mod hierarchy;
 pub mod messages;
 pub mod octahedral;
 pub mod page;
+pub mod paged_file;
 pub mod shading;
 pub mod sphere_codec;
-pub mod traverse;
 
 /// Everything that can be wrong with bytes that claim to be a farfield file
 /// or page. A decoder reports these; it never draws what failed a check.

@@ -39,6 +39,14 @@ impl PageHeader {
     }
 }
 
+/// The index a page's bytes claim for themselves (the second field of its
+/// header), read without verifying anything: how a receiver files a page
+/// before checking it. `None` when the bytes are too short to say.
+pub fn claimed_index(page: &[u8]) -> Option<u32> {
+    let bytes = page.get(PAGE_MAGIC.len()..PAGE_MAGIC.len() + 4)?;
+    Some(u32::from_le_bytes(bytes.try_into().ok()?))
+}
+
 /// Builds a page's bytes from its header and node records; returns the
 /// bytes and their checksum (also stored in the last four bytes).
 pub fn encode_page(header: &PageHeader, records: &[u8]) -> (Vec<u8>, u32) {

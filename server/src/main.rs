@@ -3,10 +3,10 @@
 use std::process::ExitCode;
 
 use clap::Parser;
-use farfield_server::allocator::HugePageAlloc;
+use farfield_builder::allocator::HugePageAlloc;
 use farfield_server::cli::{Cli, run};
 
-/// Large build arrays on huge pages: see [`farfield_server::allocator`].
+/// Large build arrays on huge pages: see [`farfield_builder::allocator`].
 #[global_allocator]
 static ALLOCATOR: HugePageAlloc = HugePageAlloc;
 

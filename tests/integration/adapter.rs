@@ -2,7 +2,7 @@
 
 use std::process::{Command, Output};
 
-use farfield_client::render::{DEVICE_SELECT_OFF, headless_or_skip};
+use farfield_render::{DEVICE_SELECT_OFF, headless_or_skip};
 
 /// Tells [`open_adapter_child`] that it runs as the child.
 const CHILD_ENV: &str = "FARFIELD_ADAPTER_CHILD";

@@ -3,8 +3,8 @@
 
 use std::path::Path;
 
-use farfield_server::import::{Params, load_input};
-use farfield_server::scene::{Geometry, Primitives, Scene};
+use farfield_builder::import::{Params, load_input};
+use farfield_builder::scene::{Geometry, Primitives, Scene};
 use farfield_tests::{scratch, shared_data};
 use glam::DVec3;
 

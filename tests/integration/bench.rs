@@ -4,13 +4,13 @@
 
 use std::time::Duration;
 
-use farfield_client::bench::rows::{ProgressRow, Row};
-use farfield_client::bench::{BenchJob, plots, report, rows, run};
-use farfield_client::commands::render::Source;
-use farfield_client::render::headless_or_skip;
-use farfield_server::import::{Params, load_input};
-use farfield_server::store::write_atomic;
+use farfield_builder::import::{Params, load_input};
+use farfield_render::headless_or_skip;
+use farfield_store::write_atomic;
 use farfield_tests::scratch;
+use farfield_tools::bench::rows::{ProgressRow, Row};
+use farfield_tools::bench::{BenchJob, plots, report, rows, run};
+use farfield_view::render_job::Source;
 
 use crate::build;
 

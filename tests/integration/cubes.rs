@@ -4,24 +4,25 @@
 
 use std::time::Duration;
 
-use farfield_client::args::CameraSpec;
-use farfield_client::commands::render::{RenderJob, Source, Until, run};
-use farfield_client::eval::compare;
-use farfield_client::net::SessionOptions;
-use farfield_client::reference::Reference;
-use farfield_client::render::{Coverage, Kernel, Renderer, headless_or_skip};
+use farfield_builder::PagedFile;
+use farfield_builder::cubes::octree::{Cell, Settings, build_cell};
+use farfield_builder::cubes::source::Source as Primitives;
+use farfield_builder::cubes::{Composite, CubeOptions as BuildCubes, build_cubes};
+use farfield_builder::import::{Params, load_input};
+use farfield_builder::scene::{Geometry, Instance, Primitives as Prims, Scene};
+use farfield_image::compare;
+use farfield_net::SessionOptions;
 use farfield_protocol::camera::Camera;
 use farfield_protocol::cube_codec::{self, Face};
-use farfield_protocol::cube_traverse::{CubeOptions, traverse_cubes};
 use farfield_protocol::hierarchy::Hierarchy;
-use farfield_server::build::PagedFile;
-use farfield_server::build::cubes::octree::{Cell, Settings, build_cell};
-use farfield_server::build::cubes::source::Source as Primitives;
-use farfield_server::build::cubes::{Composite, CubeOptions as BuildCubes, build_cubes};
-use farfield_server::import::{Params, load_input};
-use farfield_server::scene::{Geometry, Instance, Primitives as Prims, Scene};
-use farfield_server::store::write_atomic;
+use farfield_render::{Coverage, Kernel, Renderer, headless_or_skip};
+use farfield_store::write_atomic;
 use farfield_tests::{scratch, shared_data};
+use farfield_tools::reference::Reference;
+use farfield_traverse::cubes::{CubeOptions, traverse_cubes};
+use farfield_view::camera_spec::CameraSpec;
+use farfield_view::frame_loop::Until;
+use farfield_view::render_job::{RenderJob, Source, run};
 use glam::{DAffine3, DVec3, Vec3};
 
 use crate::resident;
@@ -54,7 +55,7 @@ fn tree_and_bunny(triangles: u32) -> Vec<(&'static str, Scene)> {
 }
 
 fn orbit(h: &Hierarchy, azimuth: f64, distance: f64) -> Camera {
-    let (center, radius) = farfield_client::args::scene_sphere(&h.header);
+    let (center, radius) = farfield_view::camera_spec::scene_sphere(&h.header);
     Camera::orbit(center, radius, azimuth, 10.0, distance, SIZE.0, SIZE.1)
 }
 
@@ -79,9 +80,9 @@ fn cube_image(renderer: &mut Renderer, h: &Hierarchy, camera: &Camera, eps: f64)
             ..CubeOptions::default()
         },
     );
-    farfield_client::commands::render::draw_cut(
+    farfield_render::draw_cut(
         renderer,
-        &farfield_client::commands::render::CubeFrame {
+        &farfield_render::CubeFrame {
             hierarchy: h,
             camera,
             cut: &cut,
@@ -572,9 +573,10 @@ fn corrupt_cube_pages_are_refused() {
 /// cube: the first image, from page 0 alone, is all cubes.
 #[test]
 fn the_first_streamed_image_is_made_of_cubes() {
-    use farfield_client::commands::render::{Cuts, draw_frame};
-    use farfield_client::render::SplatStyle;
-    use farfield_client::viewer::Viewer;
+    use farfield_render::SplatStyle;
+    use farfield_traverse::DrawList;
+    use farfield_view::frame_loop::{LastCut, draw_frame};
+    use farfield_view::viewer::Viewer;
     let Some(mut renderer) = headless_or_skip(SIZE.0, SIZE.1).unwrap() else {
         return;
     };
@@ -598,7 +600,7 @@ fn the_first_streamed_image_is_made_of_cubes() {
     }
     assert_eq!(viewer.hierarchy().unwrap().resident_pages(), 1);
     let camera = orbit(viewer.hierarchy().unwrap(), 30.0, 1.75);
-    let (mut cuts, mut rgba) = (Cuts::default(), Vec::new());
+    let (mut cuts, mut rgba) = (LastCut::default(), Vec::new());
     draw_frame(
         &mut viewer,
         &mut renderer,
@@ -609,8 +611,11 @@ fn the_first_streamed_image_is_made_of_cubes() {
         &mut rgba,
     )
     .unwrap();
-    assert!(!cuts.cubes.faces.is_empty(), "no placeholder cubes");
-    assert!(!cuts.cubes.wanted.is_empty(), "nothing asked for");
+    let Some(DrawList::Cubes(cut)) = cuts.draw_list() else {
+        panic!("a cube hierarchy draws cubes");
+    };
+    assert!(!cut.faces.is_empty(), "no placeholder cubes");
+    assert!(!cut.wanted.is_empty(), "nothing asked for");
     assert!(not_blank(&rgba), "the first image is blank");
     drop(viewer);
     rt.block_on(server.shutdown()).unwrap();
@@ -658,10 +663,10 @@ fn clustered_cubes_draw_sub_cubes_and_keep_the_floor() {
 /// splat threshold: a budget no frame can meet drives it up.
 #[test]
 fn eps_adapts_to_the_frame_budget_in_flight() {
-    use farfield_client::commands::fly::{FlyJob, fly};
-    use farfield_client::path::{CameraPath, Keyframe, OrbitKey};
-    use farfield_client::render::SplatStyle;
-    use farfield_client::viewer::Viewer;
+    use farfield_render::SplatStyle;
+    use farfield_view::flythrough::{FlyJob, fly};
+    use farfield_view::path::{CameraPath, Keyframe, OrbitKey};
+    use farfield_view::viewer::Viewer;
     let Some(mut renderer) = headless_or_skip(SIZE.0, SIZE.1).unwrap() else {
         return;
     };

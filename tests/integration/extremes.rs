@@ -1,8 +1,8 @@
 //! Stiff and extreme inputs: far from the origin, tiny and huge scales,
 //! degenerate point sets, and very deep trees.
 
+use farfield_builder::scene::{Geometry, Primitives, Scene};
 use farfield_protocol::hierarchy::DecodedNode;
-use farfield_server::scene::{Geometry, Primitives, Scene};
 use glam::{DAffine3, DVec3};
 
 use crate::{build, resident};

@@ -4,8 +4,8 @@
 
 use std::collections::HashMap;
 
-use farfield_server::import::{Params, load_input};
-use farfield_server::scene::Primitives;
+use farfield_builder::import::{Params, load_input};
+use farfield_builder::scene::Primitives;
 use farfield_tests::shared_data;
 
 use crate::{build, resident};

@@ -1,9 +1,9 @@
 //! The breadth-first paged layout: page 0 is the coarse model, children
 //! only point forward, and a flipped bit anywhere is caught.
 
-use farfield_server::build::PagedFile;
-use farfield_server::import::{Params, load_input};
-use farfield_server::scene::{Geometry, Primitives, Scene};
+use farfield_builder::PagedFile;
+use farfield_builder::import::{Params, load_input};
+use farfield_builder::scene::{Geometry, Primitives, Scene};
 use farfield_tests::scratch;
 use glam::DVec3;
 
@@ -160,7 +160,7 @@ fn page_zero_holds_whole_first_levels_and_children_point_forward() {
             .all(|w| w[0].index + 1 == w[1].index && w[0].level <= w[1].level)
     );
     for p in &file.pages {
-        assert!(p.len() <= farfield_server::build::DEFAULT_PAGE_BYTES);
+        assert!(p.len() <= farfield_builder::DEFAULT_PAGE_BYTES);
     }
 }
 

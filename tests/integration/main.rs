@@ -17,11 +17,11 @@ mod traversal;
 use std::path::Path;
 
 use clap::Parser;
+use farfield_builder::scene::Scene;
+use farfield_builder::{BuildOptions, PagedFile, build_spheres};
 use farfield_protocol::hierarchy::Hierarchy;
-use farfield_server::build::{BuildOptions, PagedFile, build_spheres};
 use farfield_server::cli::{Cli, Report, run};
-use farfield_server::scene::Scene;
-use farfield_server::store::{SceneFile, write_atomic};
+use farfield_store::{SceneFile, write_atomic};
 
 /// Runs `farfield-server ARGS...` in-process.
 pub fn cli(args: &[&str]) -> anyhow::Result<Report> {
@@ -65,7 +65,7 @@ pub fn serve_dir(
     dir: &Path,
 ) -> (
     tokio::runtime::Runtime,
-    farfield_server::serve::RunningServer,
+    farfield_serve::RunningServer,
     String,
 ) {
     let rt = tokio::runtime::Builder::new_multi_thread()
@@ -73,12 +73,10 @@ pub fn serve_dir(
         .enable_all()
         .build()
         .expect("runtime");
-    let config = farfield_server::serve::ServerConfig::new(
-        dir,
-        std::net::SocketAddr::from(([127, 0, 0, 1], 0)),
-    );
+    let config =
+        farfield_serve::ServerConfig::new(dir, std::net::SocketAddr::from(([127, 0, 0, 1], 0)));
     let server = rt
-        .block_on(farfield_server::serve::start(config))
+        .block_on(farfield_serve::start(config))
         .expect("server starts");
     let url = format!("http://{}", server.local_addr());
     (rt, server, url)

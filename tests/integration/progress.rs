@@ -3,9 +3,9 @@
 
 use std::sync::Mutex;
 
-use farfield_server::build::{BuildOptions, BuildStats, Progress, build_spheres_reporting};
-use farfield_server::import::{Params, load_input};
-use farfield_server::scene::{Geometry, Primitives, Scene};
+use farfield_builder::import::{Params, load_input};
+use farfield_builder::scene::{Geometry, Primitives, Scene};
+use farfield_builder::{BuildOptions, BuildStats, Progress, build_spheres_reporting};
 use glam::DVec3;
 
 /// A step begun: its name, its total, the sum of its parts, and how many

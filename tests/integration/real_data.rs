@@ -3,8 +3,8 @@
 
 use std::collections::HashSet;
 
-use farfield_server::import::{Params, load_input};
-use farfield_server::scene::{Primitives, Scene};
+use farfield_builder::import::{Params, load_input};
+use farfield_builder::scene::{Primitives, Scene};
 use farfield_tests::{scratch, shared_data};
 
 use crate::cli;

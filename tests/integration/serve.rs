@@ -10,6 +10,8 @@ use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 use std::time::Duration;
 
+use farfield_builder::PagedFile;
+use farfield_builder::import::{Params, load_input};
 use farfield_protocol::codec::{
     MAX_CONTROL_BYTES, decode_control, encode_control, encode_page_frame, frame_kind,
 };
@@ -17,10 +19,8 @@ use farfield_protocol::file::FileHeader;
 use farfield_protocol::messages::{
     ClientMessage, FrameKind, PROTOCOL_VERSION, PageWish, ServerMessage,
 };
-use farfield_server::build::PagedFile;
-use farfield_server::import::{Params, load_input};
-use farfield_server::serve::{RunningServer, ServerConfig, start};
-use farfield_server::store::write_atomic;
+use farfield_serve::{RunningServer, ServerConfig, start};
+use farfield_store::write_atomic;
 use farfield_tests::scratch;
 use futures_util::{SinkExt, StreamExt};
 use tokio::io::{AsyncReadExt, AsyncWriteExt};
@@ -557,11 +557,11 @@ async fn a_header_larger_than_a_control_message_still_arrives_whole() {
     params.set("size", 64);
     params.set("trees", 2);
     let scene = load_input("gen:island", &params).expect("gen:island");
-    let options = farfield_server::build::BuildOptions {
+    let options = farfield_builder::BuildOptions {
         page_bytes: 64,
         ..Default::default()
     };
-    let (file, _) = farfield_server::build::build_spheres(scene, &options).expect("build");
+    let (file, _) = farfield_builder::build_spheres(scene, &options).expect("build");
     assert!(FileHeader::encoded_len(file.header.pages.len()) > MAX_CONTROL_BYTES);
     write_atomic(&dir.join("many.ff"), &file).expect("write");
     let server = serve(&dir).await;

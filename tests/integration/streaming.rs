@@ -5,19 +5,19 @@ use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
-use farfield_client::args::CameraSpec;
-use farfield_client::commands::render::{
-    Cuts, RenderJob, Rendered, Settle, Source, Until, draw_frame, run,
-};
-use farfield_client::eval::compare;
-use farfield_client::net::SessionOptions;
-use farfield_client::render::{Kernel, Renderer, SplatStyle, headless_or_skip};
-use farfield_client::viewer::Viewer;
+use farfield_builder::import::{Params, load_input};
+use farfield_image::compare;
+use farfield_net::SessionOptions;
 use farfield_protocol::file::FileHeader;
-use farfield_server::import::{Params, load_input};
-use farfield_server::serve::{RunningServer, ServerConfig, start};
-use farfield_server::store::write_atomic;
+use farfield_render::{Kernel, Renderer, SplatStyle, headless_or_skip};
+use farfield_serve::{RunningServer, ServerConfig, start};
+use farfield_store::write_atomic;
 use farfield_tests::{scratch, shared_data};
+use farfield_traverse::DrawList;
+use farfield_view::camera_spec::CameraSpec;
+use farfield_view::frame_loop::{LastCut, Settle, Until, draw_frame};
+use farfield_view::render_job::{RenderJob, Rendered, Source, run};
+use farfield_view::viewer::Viewer;
 
 use crate::build;
 
@@ -178,7 +178,7 @@ fn the_first_image_comes_from_page_zero_and_error_never_grows() {
     };
     let header = h.header.clone();
     let cam = camera().resolve(&header, SIZE.0, SIZE.1);
-    let (mut cuts, mut first) = (Cuts::default(), Vec::new());
+    let (mut cuts, mut first) = (LastCut::default(), Vec::new());
     draw_frame(
         &mut viewer,
         &mut renderer,
@@ -189,10 +189,12 @@ fn the_first_image_comes_from_page_zero_and_error_never_grows() {
         &mut first,
     )
     .unwrap();
-    let cut = &cuts.spheres;
-    assert!(!cut.splats.is_empty() && cut.splats.iter().all(|s| s.node < page0_nodes));
+    let Some(DrawList::Splats(splats)) = cuts.draw_list() else {
+        panic!("a sphere hierarchy draws splats");
+    };
+    assert!(!splats.is_empty() && splats.iter().all(|s| s.node < page0_nodes));
     assert!(
-        !cut.wanted.is_empty(),
+        !cuts.wanted().is_empty(),
         "page 0 alone should not be the whole model"
     );
 
@@ -246,7 +248,7 @@ fn two_clients_at_once_and_a_stalled_reader_does_not_stall_others() {
     let url = format!("http://{}", server.local_addr());
     // A client that asks for every page with a tiny window and never reads.
     let ws = format!("ws://{}/scenes/island/stream", server.local_addr());
-    let pages = farfield_server::store::SceneFile::open(&dir.join("island.ff"))
+    let pages = farfield_store::SceneFile::open(&dir.join("island.ff"))
         .unwrap()
         .header
         .pages
@@ -475,7 +477,7 @@ fn the_demo_writes_frames_a_csv_and_a_summary() {
     let rows = csv.lines().count() - 1;
     assert_eq!(rows, first.frames);
     assert!(rows >= 5, "{rows} frames");
-    assert!(csv.starts_with(farfield_client::commands::fly::CSV_HEADER));
+    assert!(csv.starts_with(farfield_view::flythrough::CSV_HEADER));
     let pngs = std::fs::read_dir(out.join("frames")).unwrap().count();
     assert_eq!(pngs, rows);
     assert!(

@@ -1,14 +1,14 @@
 //! The reference traversal: complete where nothing is culled, conservative
 //! where backfaces are, and partial (with wanted pages) while streaming.
 
+use farfield_builder::import::{Params, load_input};
 use farfield_protocol::camera::Camera;
 use farfield_protocol::hierarchy::Hierarchy;
-use farfield_protocol::traverse::{TraverseOptions, traverse};
-use farfield_server::import::{Params, load_input};
+use farfield_traverse::spheres::{TraverseOptions, traverse};
 
 use crate::{build, resident};
 
-fn island() -> farfield_server::build::PagedFile {
+fn island() -> farfield_builder::PagedFile {
     let mut params = Params::default();
     params.set("size", 96);
     params.set("trees", 3);

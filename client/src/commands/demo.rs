@@ -12,15 +12,15 @@ use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
 use anyhow::Context;
-use farfield_server::build::{BuildOptions, build_spheres};
-use farfield_server::import::{Params, generate::DEFAULT_SCENE, load_input};
-use farfield_server::store::{SceneFile, write_atomic};
+use farfield_builder::import::{Params, generate::DEFAULT_SCENE, load_input};
+use farfield_builder::{BuildOptions, build_spheres};
+use farfield_store::{SceneFile, write_atomic};
 
-use super::fly::{FlyJob, fly, write_csv};
-use crate::net::SessionOptions;
-use crate::path::CameraPath;
-use crate::render::{Renderer, SplatStyle};
-use crate::viewer::Viewer;
+use farfield_net::SessionOptions;
+use farfield_render::{Renderer, SplatStyle};
+use farfield_view::flythrough::{FlyJob, fly, write_csv};
+use farfield_view::path::CameraPath;
+use farfield_view::viewer::Viewer;
 
 /// The demo's knobs (all have defaults; the command takes only `--out`).
 #[derive(Debug, Clone)]
@@ -75,13 +75,13 @@ pub fn run(job: &DemoJob) -> anyhow::Result<DemoSummary> {
         .worker_threads(2)
         .enable_all()
         .build()?;
-    let config = farfield_server::serve::ServerConfig {
+    let config = farfield_serve::ServerConfig {
         scenes_dir: job.out.clone(),
         listen: SocketAddr::from(([127, 0, 0, 1], 0)),
         cache_bytes: 64 << 20,
     };
     let server = runtime
-        .block_on(farfield_server::serve::start(config))
+        .block_on(farfield_serve::start(config))
         .context("starting the embedded server")?;
     let url = format!("http://{}", server.local_addr());
     let mut renderer = Renderer::new_headless(job.width, job.height)?;
@@ -103,22 +103,24 @@ pub fn run(job: &DemoJob) -> anyhow::Result<DemoSummary> {
     drop(viewer);
     // A small sweep of the splat threshold, streamed, and its report: the
     // trade-off between error and frame time of the built-in scene.
-    let sweep = crate::bench::BenchJob {
-        source: super::render::Source::Server {
+    let sweep = farfield_tools::bench::BenchJob {
+        source: farfield_view::render_job::Source::Server {
             url: url.clone(),
             scene: "island".into(),
         },
-        path: Some(CameraPath::from_keyframes(&[crate::path::Keyframe {
-            t: 0.0,
-            orbit: Some(crate::path::OrbitKey {
-                azimuth: 30.0,
-                elevation: 25.0,
-                distance: 1.6,
-            }),
-            eye: None,
-            target: None,
-            fov: None,
-        }])?),
+        path: Some(CameraPath::from_keyframes(&[
+            farfield_view::path::Keyframe {
+                t: 0.0,
+                orbit: Some(farfield_view::path::OrbitKey {
+                    azimuth: 30.0,
+                    elevation: 25.0,
+                    distance: 1.6,
+                }),
+                eye: None,
+                target: None,
+                fov: None,
+            },
+        ])?),
         mode: "spheres".into(),
         param: "threshold".into(),
         values: ["1", "2", "4", "8", "16"].map(String::from).to_vec(),
@@ -131,8 +133,8 @@ pub fn run(job: &DemoJob) -> anyhow::Result<DemoSummary> {
         out: job.out.join("bench"),
         timeout: Duration::from_secs(120),
     };
-    crate::bench::run(&sweep, &mut renderer).context("the demo's sweep")?;
-    let report = crate::bench::report::write_report(
+    farfield_tools::bench::run(&sweep, &mut renderer).context("the demo's sweep")?;
+    let report = farfield_tools::bench::report::write_report(
         std::slice::from_ref(&sweep.out),
         &job.out.join("report"),
     )?;
@@ -201,4 +203,14 @@ pub fn run(job: &DemoJob) -> anyhow::Result<DemoSummary> {
         bytes_received: bytes,
         text,
     })
+}
+
+/// `farfield demo`: runs the demo into `out` and prints its summary.
+pub fn print(out: PathBuf) -> anyhow::Result<()> {
+    let summary = run(&DemoJob {
+        out,
+        ..Default::default()
+    })?;
+    print!("{}", summary.text);
+    Ok(())
 }

@@ -1,7 +1,8 @@
-//! One module per `farfield` subcommand; `main.rs` only parses and dispatches.
+//! One module per `farfield` subcommand (the measuring ones together in
+//! [`measure`]); [`crate::cli`] parses and dispatches.
 
-pub mod bench_cubes;
-pub mod bench_stream;
+pub mod compare;
 pub mod demo;
-pub mod fly;
+pub mod measure;
 pub mod render;
+pub mod traverse;

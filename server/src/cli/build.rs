@@ -7,12 +7,13 @@ use anyhow::Context;
 use indicatif::{ProgressBar, ProgressStyle};
 use serde_json::json;
 
-use super::{BuildArgs, Kind, Report, counted, memory};
-use crate::build::cubes::{CubeOptions, build_cubes};
-use crate::build::{BuildOptions, Progress, build_spheres_reporting};
-use crate::import::{Params, load_input};
-use crate::scene::Scene;
-use crate::store::{check_target, write_atomic};
+use farfield_builder::cubes::{CubeOptions, build_cubes};
+use farfield_builder::import::{Params, load_inputs};
+use farfield_builder::{BuildOptions, Progress, build_spheres_reporting};
+use farfield_store::{check_target, write_atomic};
+use farfield_tools::meters::memory;
+
+use super::{BuildArgs, Kind, Report, counted};
 
 /// Steps without a measure of their own (import, writing): a spinner and
 /// what is going on.
@@ -70,7 +71,9 @@ pub fn run(args: &BuildArgs) -> anyhow::Result<Report> {
     let (file, stats, nodes, kind) = match args.kind {
         Kind::Spheres => {
             let options = BuildOptions {
-                page_bytes: args.page_bytes.unwrap_or(crate::build::DEFAULT_PAGE_BYTES),
+                page_bytes: args
+                    .page_bytes
+                    .unwrap_or(farfield_builder::DEFAULT_PAGE_BYTES),
                 ..BuildOptions::default()
             };
             let (file, stats) = build_spheres_reporting(scene, &options, &Bar(&progress))
@@ -87,7 +90,7 @@ pub fn run(args: &BuildArgs) -> anyhow::Result<Report> {
                 cube_cost: args.cube_cost,
                 page_bytes: args
                     .page_bytes
-                    .unwrap_or(crate::build::cubes::DEFAULT_CUBE_PAGE_BYTES),
+                    .unwrap_or(farfield_builder::cubes::DEFAULT_CUBE_PAGE_BYTES),
             };
             let (file, stats) = build_cubes(scene, &options)
                 .with_context(|| format!("building {}", args.inputs.join(" ")))?;
@@ -131,13 +134,4 @@ pub fn run(args: &BuildArgs) -> anyhow::Result<Report> {
         exit_code: 0,
         as_json: args.json,
     })
-}
-
-/// Loads and merges every input into one scene.
-pub(crate) fn load_inputs(inputs: &[String], params: &Params) -> anyhow::Result<Scene> {
-    let mut scene = Scene::default();
-    for input in inputs {
-        scene.merge(load_input(input, params)?);
-    }
-    Ok(scene)
 }

@@ -3,7 +3,7 @@
 use serde_json::json;
 
 use super::{InspectArgs, Report, counted};
-use crate::store::SceneFile;
+use farfield_store::SceneFile;
 
 pub fn run(args: &InspectArgs) -> anyhow::Result<Report> {
     let file = SceneFile::open(&args.file)?;

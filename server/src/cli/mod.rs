@@ -3,11 +3,8 @@
 //! [`Report`]: a JSON value (printed with `--json`), a human summary, and
 //! an exit code. `main.rs` only parses, prints and exits.
 
-mod bench;
 mod build;
-mod cpu;
 mod inspect;
-pub mod memory;
 mod serve;
 
 use std::net::SocketAddr;
@@ -67,10 +64,10 @@ pub struct BuildArgs {
     /// Cubes: how children's faces combine, `disjoint` (1995: opaque stays
     /// opaque) or `over` (1996).
     #[arg(long, default_value = "disjoint")]
-    pub composite: crate::build::cubes::Composite,
+    pub composite: farfield_builder::cubes::Composite,
     /// Cubes: what one cube costs to draw, in triangles (the subdivision
     /// criterion; larger means larger leaves).
-    #[arg(long, default_value_t = crate::build::cubes::octree::CUBE_COST)]
+    #[arg(long, default_value_t = farfield_builder::cubes::octree::CUBE_COST)]
     pub cube_cost: f64,
     /// Print one JSON summary object on stdout and no progress bar.
     #[arg(long)]
@@ -101,7 +98,7 @@ pub struct ServeArgs {
     #[arg(long, default_value = "127.0.0.1:7878")]
     pub listen: SocketAddr,
     /// Bound on the shared page cache, in bytes.
-    #[arg(long, default_value_t = crate::serve::DEFAULT_CACHE_BYTES)]
+    #[arg(long, default_value_t = farfield_serve::DEFAULT_CACHE_BYTES)]
     pub cache_bytes: u64,
     /// Print the final counters as one JSON object on shutdown.
     #[arg(long)]
@@ -151,12 +148,18 @@ pub fn run(cli: Cli) -> anyhow::Result<Report> {
             params,
             repeats,
             json,
-        }) => bench::build(&inputs, &params, repeats, json),
+        }) => measured(
+            farfield_tools::bench_build::build(&inputs, &params, repeats)?,
+            json,
+        ),
         Command::Bench(BenchCommand::Traverse {
             file,
             repeats,
             json,
-        }) => bench::traverse_file(&file, repeats, json),
+        }) => measured(
+            farfield_tools::bench_build::traverse_file(&file, repeats)?,
+            json,
+        ),
         Command::Serve(args) => serve::run(&args),
     }
 }
@@ -167,18 +170,14 @@ pub(crate) fn counted(n: impl Into<u64>, one: &str, many: &str) -> String {
     format!("{n} {}", if n == 1 { one } else { many })
 }
 
-/// Median of a non-empty list of samples.
-pub(crate) fn median(samples: &mut [f64]) -> f64 {
-    samples.sort_by(f64::total_cmp);
-    let n = samples.len();
-    if n == 0 {
-        return f64::NAN;
-    }
-    if n % 2 == 1 {
-        samples[n / 2]
-    } else {
-        (samples[n / 2 - 1] + samples[n / 2]) * 0.5
-    }
+/// A benchmark's figures as a command's report.
+fn measured(m: farfield_tools::Measured, as_json: bool) -> anyhow::Result<Report> {
+    Ok(Report {
+        json: m.json,
+        text: m.text,
+        exit_code: 0,
+        as_json,
+    })
 }
 
 #[cfg(test)]

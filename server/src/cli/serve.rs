@@ -1,7 +1,7 @@
 //! `farfield-server serve`: runs the memory server until SIGINT or SIGTERM.
 //!
 //! The command line is synchronous, so this builds a tokio runtime, starts
-//! [`crate::serve`] in it, prints `listening on ADDR` as the first line of
+//! [`farfield_serve`] in it, prints `listening on ADDR` as the first line of
 //! stdout at once (scripts and tests pass port 0 and read the real port
 //! from it), and blocks until a signal. The returned report holds the
 //! final counters.
@@ -11,7 +11,7 @@ use std::io::Write;
 use serde_json::json;
 
 use super::{Report, ServeArgs};
-use crate::serve::{ServerConfig, start};
+use farfield_serve::{ServerConfig, start};
 
 pub fn run(args: &ServeArgs) -> anyhow::Result<Report> {
     let runtime = tokio::runtime::Builder::new_multi_thread()

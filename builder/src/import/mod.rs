@@ -1,0 +1,239 @@
+//! Importers: files and generators in, one [`Scene`] out.
+//!
+//! Each format has its own module with one entry point `load(path) ->
+//! Result<Scene, ImportError>`; [`load_input`] picks one by extension, or by
+//! the `gen:NAME` prefix for the procedural [`generate`] scenes. After a
+//! format parses, [`validate`] checks what every builder relies on (finite
+//! coordinates, indices in range, something to build), so no importer has to
+//! repeat those checks and no builder ever sees NaN.
+//!
+//! Importers produce scenes, never files: they know nothing of hierarchies.
+
+mod common;
+pub mod generate;
+mod las;
+mod obj;
+mod off;
+mod params;
+mod pdb;
+mod ply;
+#[cfg(test)]
+mod test_file;
+
+use std::path::{Path, PathBuf};
+
+pub use params::Params;
+
+use rayon::prelude::*;
+
+use crate::scene::{Primitives, Scene};
+
+/// Why an input could not become a scene. Every message names the input and,
+/// where there is one, the element (line, vertex, face) that is wrong.
+///
+/// A cause is kept in a field named `error`, not `source`: the message
+/// already prints it, and as a `source` the command line's error chain would
+/// print it a second time.
+#[derive(Debug, thiserror::Error)]
+pub enum ImportError {
+    #[error("{path}: {error}")]
+    Io {
+        path: PathBuf,
+        error: std::io::Error,
+    },
+    #[error(
+        "{path}: unknown input format '{extension}' (expected .obj, .ply, .off, .las, .laz, .pdb or gen:NAME)"
+    )]
+    UnknownFormat { path: PathBuf, extension: String },
+    #[error("{path}: {element}: {message}")]
+    Malformed {
+        path: PathBuf,
+        element: String,
+        message: String,
+    },
+    #[error("{path}: the input holds no geometry")]
+    Empty { path: PathBuf },
+    #[error("gen:{name}: {message}")]
+    Generator { name: String, message: String },
+}
+
+impl ImportError {
+    /// Shorthand for the most common error: something at `element` is wrong.
+    pub fn malformed(path: &Path, element: impl Into<String>, message: impl Into<String>) -> Self {
+        Self::Malformed {
+            path: path.to_owned(),
+            element: element.into(),
+            message: message.into(),
+        }
+    }
+
+    pub fn io(path: &Path, error: std::io::Error) -> Self {
+        Self::Io {
+            path: path.to_owned(),
+            error,
+        }
+    }
+}
+
+/// Loads one input: a file path, or `gen:NAME` for a generated scene.
+///
+/// `params` are the `--param key=value` pairs; only generators read them, and
+/// a file input with params is not an error (they may be meant for another
+/// input of the same build).
+pub fn load_input(input: &str, params: &Params) -> Result<Scene, ImportError> {
+    if let Some(name) = input.strip_prefix("gen:") {
+        let scene = generate::generate(name, params)?;
+        validate(Path::new(input), &scene)?;
+        return Ok(scene);
+    }
+    let path = Path::new(input);
+    let extension = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_ascii_lowercase)
+        .unwrap_or_default();
+    let scene = match extension.as_str() {
+        "obj" => obj::load(path)?,
+        "ply" => ply::load(path)?,
+        "off" => off::load(path)?,
+        "las" | "laz" => las::load(path)?,
+        "pdb" | "ent" => pdb::load(path)?,
+        _ => {
+            return Err(ImportError::UnknownFormat {
+                path: path.to_owned(),
+                extension,
+            });
+        }
+    };
+    validate(path, &scene)?;
+    Ok(scene)
+}
+
+/// Loads every input and merges them into one scene (a build of several
+/// files, or a tool's reference of the same inputs).
+pub fn load_inputs(inputs: &[String], params: &Params) -> Result<Scene, ImportError> {
+    let mut scene = Scene::default();
+    for input in inputs {
+        scene.merge(load_input(input, params)?);
+    }
+    Ok(scene)
+}
+
+/// Checks what the builders rely on: at least one primitive, finite
+/// coordinates and radii, triangle indices in range, channel lengths that
+/// match the positions.
+pub fn validate(path: &Path, scene: &Scene) -> Result<(), ImportError> {
+    if scene.instanced_primitive_count() == 0 {
+        return Err(ImportError::Empty {
+            path: path.to_owned(),
+        });
+    }
+    for geometry in &scene.geometries {
+        let n = geometry.positions.len();
+        // On all threads: for a scanned mesh these two scans were a fifth of
+        // its (otherwise serial) import. The first offender is still the
+        // one reported.
+        if let Some(i) = first_where(&geometry.positions, |p| !p.is_finite()) {
+            let p = geometry.positions[i];
+            return Err(ImportError::malformed(
+                path,
+                format!("vertex {i}"),
+                format!(
+                    "coordinate is not a finite number ({}, {}, {})",
+                    p.x, p.y, p.z
+                ),
+            ));
+        }
+        if geometry.normals.as_ref().is_some_and(|v| v.len() != n) {
+            return Err(ImportError::malformed(
+                path,
+                "normals",
+                "count differs from vertex count",
+            ));
+        }
+        if geometry.colors.as_ref().is_some_and(|v| v.len() != n) {
+            return Err(ImportError::malformed(
+                path,
+                "colors",
+                "count differs from vertex count",
+            ));
+        }
+        match &geometry.primitives {
+            Primitives::Triangles(triangles) => {
+                let out_of_range = |tri: &[u32; 3]| tri.iter().any(|&i| i as usize >= n);
+                if let Some(t) = first_where(triangles, out_of_range) {
+                    let bad = triangles[t].iter().find(|&&i| i as usize >= n);
+                    return Err(ImportError::malformed(
+                        path,
+                        format!("face {t}"),
+                        format!(
+                            "vertex index {} is out of range ({n} vertices)",
+                            bad.copied().unwrap_or_default()
+                        ),
+                    ));
+                }
+            }
+            Primitives::Points => {}
+            Primitives::Spheres(radii) => {
+                if radii.len() != n {
+                    return Err(ImportError::malformed(
+                        path,
+                        "radii",
+                        "count differs from sphere count",
+                    ));
+                }
+                if let Some(i) = radii.iter().position(|r| !(r.is_finite() && *r >= 0.0)) {
+                    return Err(ImportError::malformed(
+                        path,
+                        format!("sphere {i}"),
+                        format!("radius {} is not a finite non-negative number", radii[i]),
+                    ));
+                }
+            }
+        }
+    }
+    for (k, instance) in scene.instances.iter().enumerate() {
+        if instance.geometry >= scene.geometries.len() || !instance.world_from_local.is_finite() {
+            return Err(ImportError::malformed(
+                path,
+                format!("instance {k}"),
+                "invalid placement",
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// The index of the first item for which `pred` holds, searched on all
+/// threads a chunk at a time. Rayon's per-item `position_first` splits the
+/// slice down to single items: on a 48 000-vertex mesh it took 4 to 20
+/// times as long as a serial scan, and on 4 million items 3.6 times as long
+/// as this.
+fn first_where<T: Sync>(items: &[T], pred: impl Fn(&T) -> bool + Sync) -> Option<usize> {
+    const CHUNK: usize = 1 << 14;
+    let chunk = items
+        .par_chunks(CHUNK)
+        .position_first(|c| c.iter().any(&pred))?;
+    let start = chunk * CHUNK;
+    items[start..].iter().position(pred).map(|i| start + i)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::first_where;
+
+    #[test]
+    fn first_where_finds_the_first_match_in_any_chunk() {
+        let mut items = vec![0u32; 100_000];
+        assert_eq!(first_where(&items, |&v| v != 0), None);
+        // Matches in a late chunk, then an earlier one, then at the very
+        // start: each time the lowest index wins.
+        items[99_999] = 1;
+        items[70_000] = 1;
+        assert_eq!(first_where(&items, |&v| v != 0), Some(70_000));
+        items[16_385] = 1;
+        assert_eq!(first_where(&items, |&v| v != 0), Some(16_385));
+        items[0] = 1;
+        assert_eq!(first_where(&items, |&v| v != 0), Some(0));
+    }
+}

@@ -1,0 +1,648 @@
+//! Quantization and the breadth-first page layout (QSplat 3.1 and 3.2).
+//!
+//! Nodes are visited level by level. Each sibling group is quantized
+//! against its parent's *quantized* sphere, top-down, so quantization error
+//! never accumulates with depth; an interior node's quantized sphere
+//! replaces its true one in the tree (through [`SharedNodes`]), where its
+//! children find it at the next level. Records go
+//! into pages in breadth-first order; a page holds whole sibling groups and
+//! page 0 ends on a level boundary, so it is a complete coarse model.
+
+use farfield_protocol::file::{AttributeFlags, FileHeader, HierarchyKind, PageEntry, place_pages};
+use farfield_protocol::page::{PAGE_CHECKSUM_BYTES, PAGE_HEADER_BYTES, PageHeader, encode_page};
+use farfield_protocol::paged_file::PagedFile;
+use farfield_protocol::sphere_codec::{self, ChildCount, NodeLayout, NodeRecord};
+use glam::{DVec3, Vec3};
+use rayon::prelude::*;
+
+use super::leaves::{Leaf, cone_from_u8, unpack_normal};
+use super::progress::Progress;
+use super::tree::{NodeRef, SharedNodes, Tree};
+
+/// What `lay_out` needs besides the tree.
+#[derive(Debug, Clone, Copy)]
+pub struct LayoutInput {
+    pub layout: NodeLayout,
+    pub page_bytes: usize,
+    pub input_vertices: u64,
+    pub bounds_min: DVec3,
+    pub bounds_max: DVec3,
+    pub record_leaf_sources: bool,
+}
+
+/// Quantizes the tree and cuts it into pages.
+/// `progress` counts the nodes placed in pages.
+pub fn lay_out(tree: Tree, input: LayoutInput, progress: &dyn Progress) -> PagedFile {
+    let node_bytes = input.layout.bytes() as usize;
+    let mut pages = PageCutter::new(input.page_bytes, node_bytes);
+    // Every node is placed once: the interior ones and the leaves the tree
+    // references (a collapsed duplicate stays in the list, unreferenced).
+    let total_nodes = (tree.interior.len() + tree.leaves.len()) as u64 - tree.collapsed_duplicates;
+    let Tree {
+        leaves: leaf_list,
+        mut interior,
+        root,
+        ..
+    } = tree;
+    let (root_center, root_radius) = match root.get() {
+        Ok(l) => (leaf_list[l].position, f64::from(leaf_list[l].radius)),
+        Err(i) => (interior[i].center, interior[i].radius),
+    };
+    // A zero-size root (one point of radius 0) still needs a positive scale.
+    let root_radius = if root_radius > 0.0 { root_radius } else { 1.0 };
+    // The header sphere holds the root as it will be stored (with its slack
+    // when it has children), so the root's own code is the identity.
+    let root_radius = if root.get().is_err() {
+        root_radius * (1.0 + INTERIOR_SLACK) * (1.0 + 1e-12)
+    } else {
+        root_radius
+    };
+    // Each interior node's sphere is replaced by its quantized one as soon
+    // as it is quantized: its children are quantized against that, and its
+    // true sphere is not needed again. So a level is a list of node
+    // indices, not of spheres.
+    let tree = LayoutTree {
+        leaves: &leaf_list,
+        nodes: interior.shared(),
+    };
+
+    let mut nodes = 0u64;
+    let mut leaves = 0u64;
+    // Breadth-first index of the next child to be placed.
+    let mut next_child = 1u64;
+    let mut leaf_sources = Vec::new();
+    // The root forms its own group, quantized against the header sphere.
+    // SAFETY: no other thread runs yet.
+    let root_record = unsafe { tree.quantize(root, root_center, root_radius, input.layout) };
+    let root_bytes = root_record.pack(input.layout).to_le_bytes();
+    pages.add_group(0, &root_bytes[..node_bytes], next_child);
+    next_child += root_record.children.get() as u64;
+    nodes += 1;
+    progress.begin("layout", total_nodes);
+    progress.advance(1);
+    let mut nodes_reported = 1;
+    let mut windows = Windows::default();
+    match root.get() {
+        Err(node) => windows.next.push(vec![node as u32]),
+        Ok(l) => {
+            leaves += 1;
+            if input.record_leaf_sources {
+                leaf_sources.push((leaf_list[l].source, 0));
+            }
+        }
+    }
+    // Records are placed in pages in order, on one thread: the only serial
+    // work. Each window is placed while the next one is quantized on the
+    // pool's threads, so they are not idle meanwhile. The placing stays on
+    // this thread, whose allocator heap holds the memory freed by earlier
+    // steps: pages made on a worker thread came from fresh memory and
+    // raised the island's peak by 4 %.
+    let mut place = |window: Window, placed: Vec<PlacedGroups>| {
+        if window.starts_level {
+            pages.end_level();
+        }
+        debug_assert_eq!(window.tasks().count(), placed.len());
+        for (parents, placed) in window.tasks().zip(placed) {
+            let mut offset = 0;
+            for (&parent, &(count, grandchildren)) in parents.iter().zip(&placed.groups) {
+                let end = offset + usize::from(count) * node_bytes;
+                pages.add_group(window.depth, &placed.bytes[offset..end], next_child);
+                offset = end;
+                if input.record_leaf_sources {
+                    // SAFETY: a read of a parent of this window; the tasks
+                    // running now write only children of the next window's
+                    // parents, which lie a level or two below it.
+                    let node = unsafe { tree.nodes.get(parent as usize) };
+                    for (i, child) in node.children[..usize::from(count)].iter().enumerate() {
+                        if let Ok(l) = child.get() {
+                            leaf_sources.push((leaf_list[l].source, nodes + i as u64));
+                        }
+                    }
+                }
+                next_child += u64::from(grandchildren);
+                nodes += u64::from(count);
+            }
+            leaves += placed.leaves;
+        }
+        progress.advance(nodes - nodes_reported);
+        nodes_reported = nodes;
+    };
+    let mut pending = None;
+    loop {
+        let window = windows.take();
+        if window.is_none() && pending.is_none() {
+            break;
+        }
+        let mut quantized = None;
+        rayon::in_place_scope(|scope| {
+            scope.spawn(|_| {
+                quantized = window.map(|window| {
+                    let tasks: Vec<&[u32]> = window.tasks().collect();
+                    let placed: Vec<PlacedGroups> = tasks
+                        .par_iter()
+                        // SAFETY: a task reads its parents (quantized at
+                        // the level above, by tasks that have finished) and
+                        // reads, then writes, their children. A node has one
+                        // parent and a parent is in one task, so no node is
+                        // written by two tasks or read by one while another
+                        // writes it; the placement beside only reads
+                        // parents of its own window.
+                        .map(|parents| unsafe { tree.quantize_groups(parents, input.layout) })
+                        .collect();
+                    (window, placed)
+                });
+            });
+            if let Some((window, placed)) = pending.take() {
+                place(window, placed);
+            }
+        });
+        if let Some((_, placed)) = &mut quantized {
+            // The next level, in order: complete once this level's last
+            // window is quantized, before its first window is taken.
+            for p in placed {
+                let next = std::mem::take(&mut p.next);
+                if !next.is_empty() {
+                    windows.next.push(next);
+                }
+            }
+        }
+        pending = quantized;
+    }
+    drop(tree);
+    drop(leaf_list);
+    drop(interior);
+    let (mut pages_dir, page_bytes) = pages.finish();
+    // Pages follow the header; offsets are known once the page count is.
+    place_pages(&mut pages_dir);
+    let header = FileHeader {
+        cluster: 0,
+        kind: HierarchyKind::Spheres,
+        attributes: AttributeFlags {
+            color: input.layout.color,
+            normals: input.layout.normals,
+            leaf_geometry: false,
+        },
+        node_bytes: node_bytes as u32,
+        // `depth` is the deepest level's index (the root's is 0); the
+        // header counts levels, the root alone being one.
+        levels: windows.depth + 1,
+        nodes,
+        leaves,
+        input_vertices: input.input_vertices,
+        bounds_min: input.bounds_min,
+        bounds_max: input.bounds_max,
+        root_center,
+        root_radius,
+        pages: pages_dir,
+    };
+    PagedFile {
+        header,
+        pages: page_bytes,
+        leaf_sources,
+    }
+}
+
+/// Parents whose sibling groups are quantized per window: enough work to
+/// share between threads, little enough memory to hold their records.
+const LAYOUT_CHUNK: usize = 1 << 15;
+/// Parents per parallel task within a window, at most.
+const LAYOUT_GRAIN: usize = 1 << 10;
+
+/// Parents per parallel task for a window of `parents`: at most
+/// [`LAYOUT_GRAIN`], and small enough that the window makes about four
+/// tasks per thread, so the levels of a small model (a few thousand
+/// parents) are shared between threads too instead of running as one or
+/// two tasks; not so small that a task's bookkeeping outweighs its work.
+/// (horse.ply's and igea.ply's layouts ran 5-6 % faster than with a fixed
+/// 1024; the records and pages do not depend on it. On many threads a large
+/// model's tasks get smaller too, and the next level is held as more,
+/// shorter lists.)
+fn layout_grain(parents: usize) -> usize {
+    (parents / (4 * rayon::current_num_threads())).clamp(64, LAYOUT_GRAIN)
+}
+
+/// The parents whose sibling groups are quantized together (about
+/// [`LAYOUT_CHUNK`] of them, all of one level), as the lists they came in.
+struct Window {
+    /// The level of its parents' children, which its records are.
+    depth: u32,
+    /// Whether this is its level's first window: pages mark level ends.
+    starts_level: bool,
+    lists: Vec<Vec<u32>>,
+    parents: usize,
+    /// Parents per task, fixed when the window is cut: the quantizing and
+    /// the placing must cut the same tasks, and they run on different
+    /// threads.
+    grain: usize,
+}
+
+impl Window {
+    /// The parents of each parallel task, in order.
+    fn tasks(&self) -> impl Iterator<Item = &[u32]> {
+        self.lists.iter().flat_map(|list| list.chunks(self.grain))
+    }
+}
+
+/// The levels' interior nodes, cut into windows of about [`LAYOUT_CHUNK`]
+/// parents. A level is held as the lists the tasks of the level above
+/// produced (each exactly sized): joining them into one vector would hold a
+/// level twice, and growing it would hold it up to three times, at the
+/// build's memory peak. Windows are freed once placed.
+#[derive(Default)]
+struct Windows {
+    current: std::vec::IntoIter<Vec<u32>>,
+    /// The next level's lists, pushed as this level's windows are quantized.
+    next: Vec<Vec<u32>>,
+    /// The level of the current windows' children (the root's is 0); once
+    /// all are taken, the deepest level.
+    depth: u32,
+}
+
+impl Windows {
+    /// The next window, moving on to the next level when this one is used
+    /// up; `None` once the next level is empty too.
+    fn take(&mut self) -> Option<Window> {
+        let starts_level = self.current.as_slice().is_empty();
+        if starts_level {
+            if self.next.is_empty() {
+                return None;
+            }
+            self.current = std::mem::take(&mut self.next).into_iter();
+            self.depth += 1;
+        }
+        let mut window = Window {
+            depth: self.depth,
+            starts_level,
+            lists: Vec::new(),
+            parents: 0,
+            grain: 0,
+        };
+        while window.parents < LAYOUT_CHUNK
+            && let Some(list) = self.current.next()
+        {
+            window.parents += list.len();
+            window.lists.push(list);
+        }
+        window.grain = layout_grain(window.parents);
+        Some(window)
+    }
+}
+
+/// One task's output: the packed records of its parents' children, in
+/// order; per parent, the number of children and of grandchildren (the
+/// group's size and how far it moves the next child index); how many of
+/// the children are leaves; and those that are interior nodes, for the
+/// next level.
+struct PlacedGroups {
+    bytes: Vec<u8>,
+    groups: Vec<(u8, u8)>,
+    leaves: u64,
+    next: Vec<u32>,
+}
+
+/// The tree as the layout sees it: leaves to read, and interior nodes whose
+/// spheres become their quantized ones as the levels are placed.
+struct LayoutTree<'a> {
+    leaves: &'a [Leaf],
+    nodes: SharedNodes<'a>,
+}
+
+impl LayoutTree<'_> {
+    /// Quantizes the children of `parents`, whose spheres are already the
+    /// quantized ones.
+    ///
+    /// # Safety
+    ///
+    /// While this runs, no other thread may write `parents`, nor touch
+    /// their children.
+    unsafe fn quantize_groups(&self, parents: &[u32], layout: NodeLayout) -> PlacedGroups {
+        let node_bytes = layout.bytes() as usize;
+        // SAFETY (here and below): the parents are only read, and their
+        // children are this task's alone (the caller's contract).
+        let parent_nodes = || {
+            parents
+                .iter()
+                .map(|&p| unsafe { self.nodes.get(p as usize) })
+        };
+        // Exact sizes, from the child references alone: these lists make up
+        // the next level, which lives through the memory peak. (When a level
+        // held 40-byte spheres, room for four children each, shrunk
+        // afterwards, raised horse's peak by about 5 %: the heap's small
+        // blocks are resident, used or not.)
+        let (mut children, mut interior) = (0, 0);
+        for node in parent_nodes() {
+            let refs = &node.children[..usize::from(node.child_count)];
+            children += refs.len();
+            for child in refs {
+                // Asked for now, used by the loop below: the children lie
+                // scattered over the node and leaf arrays, and a task's
+                // few thousand fit in the cache, so their loads overlap
+                // instead of the quantizer waiting on each in turn (the
+                // layout of gen:island ran 11-14 % faster).
+                match child.get() {
+                    Ok(l) => super::prefetch(&self.leaves[l]),
+                    Err(i) => {
+                        interior += 1;
+                        self.nodes.prefetch(i);
+                    }
+                }
+            }
+        }
+        let mut placed = PlacedGroups {
+            bytes: Vec::with_capacity(children * node_bytes),
+            groups: Vec::with_capacity(parents.len()),
+            leaves: 0,
+            next: Vec::with_capacity(interior),
+        };
+        for parent in parent_nodes() {
+            let mut grandchildren = 0;
+            for &child in &parent.children[..usize::from(parent.child_count)] {
+                let record = unsafe { self.quantize(child, parent.center, parent.radius, layout) };
+                placed
+                    .bytes
+                    .extend_from_slice(&record.pack(layout).to_le_bytes()[..node_bytes]);
+                grandchildren += record.children.get() as u8;
+                match child.get() {
+                    Err(i) => placed.next.push(i as u32),
+                    Ok(_) => placed.leaves += 1,
+                }
+            }
+            placed.groups.push((parent.child_count, grandchildren));
+        }
+        placed
+    }
+
+    /// Quantizes one node against its parent's quantized sphere; an
+    /// interior node's sphere is then replaced by its quantized one, the
+    /// frame its own children are quantized in.
+    ///
+    /// # Safety
+    ///
+    /// While this runs, no other thread may touch `node`.
+    unsafe fn quantize(
+        &self,
+        node: NodeRef,
+        parent_center: DVec3,
+        parent_radius: f64,
+        layout: NodeLayout,
+    ) -> NodeRecord {
+        let (center, radius, normal, cone, color, children) = match node.get() {
+            Ok(l) => {
+                let leaf = self.leaves[l];
+                (
+                    leaf.position,
+                    f64::from(leaf.radius),
+                    unpack_normal(leaf.normal),
+                    cone_from_u8(leaf.cone),
+                    leaf.color,
+                    0,
+                )
+            }
+            Err(i) => {
+                // SAFETY: the caller rules out other threads on this node.
+                let n = unsafe { self.nodes.get(i) };
+                (
+                    n.center,
+                    n.radius,
+                    n.normal,
+                    f64::from(n.cone),
+                    n.color,
+                    usize::from(n.child_count),
+                )
+            }
+        };
+        // An interior node is stored a little larger than its children need, so
+        // that children touching its true boundary still quantize to spheres
+        // inside it (see INTERIOR_SLACK).
+        let stored_radius = if children > 0 {
+            radius * (1.0 + INTERIOR_SLACK)
+        } else {
+            radius
+        };
+        let sphere =
+            sphere_codec::encode_sphere(parent_center, parent_radius, center, stored_radius);
+        if let Err(i) = node.get() {
+            let (center, radius) =
+                sphere_codec::decode_sphere(parent_center, parent_radius, sphere);
+            // SAFETY: as above.
+            unsafe { self.nodes.set_sphere(i, center, radius) };
+        }
+        let (normal_code, cone_code) = if layout.normals {
+            encode_orientation(normal, cone)
+        } else {
+            (0, 3)
+        };
+        NodeRecord {
+            sphere,
+            children: ChildCount::new(children).unwrap_or(ChildCount::LEAF),
+            normal: normal_code,
+            cone: cone_code,
+            color: if layout.color {
+                sphere_codec::encode_color(color)
+            } else {
+                0
+            },
+        }
+    }
+}
+
+/// How much larger than its true sphere an interior node is stored.
+///
+/// Every bounding sphere touches some child from inside. A child touching
+/// its parent's boundary can only be quantized inside the parent if it sits
+/// exactly on a grid point; otherwise the smallest valid code is the parent
+/// itself, and along a chain of such children (the corner of a flat scan)
+/// a leaf decodes as large as the root. Storing each interior sphere 15%
+/// larger leaves its children room to round into. Measured on a 500x500
+/// grid of points: without slack the largest decoded leaf had the root's
+/// radius (355 units for leaves of about 1.2); with 10% it was 2.6, with
+/// 20% 2.3, while the bunny's mean leaf radius changed by under 2%.
+/// (QSplat reports a mean radius error of 0.15 parent radii; its
+/// quantizer pays this cost in another way the paper does not detail.)
+pub const INTERIOR_SLACK: f64 = 0.15;
+
+/// Normal and cone codes; the cone is widened by the largest normal
+/// quantization error so culling by the stored values stays conservative.
+fn encode_orientation(normal: Vec3, cone: f64) -> (u16, u8) {
+    let code = sphere_codec::encode_normal(normal);
+    (
+        code,
+        sphere_codec::encode_cone(cone + sphere_codec::MAX_NORMAL_ERROR),
+    )
+}
+
+/// Accumulates records into pages of at most `page_bytes`, never splitting a
+/// sibling group, ending page 0 on a level boundary.
+struct PageCutter {
+    page_bytes: usize,
+    node_bytes: usize,
+    records: Vec<u8>,
+    page: Option<PageHeader>,
+    /// Page 0's records up to the last complete level.
+    page0_done: bool,
+    page0_level_end: usize,
+    page0_level_count: (u32, u64),
+    entries: Vec<PageEntry>,
+    pages: Vec<Vec<u8>>,
+    next_node: u64,
+}
+
+impl PageCutter {
+    fn new(page_bytes: usize, node_bytes: usize) -> Self {
+        let page_bytes = page_bytes.max(PAGE_HEADER_BYTES + PAGE_CHECKSUM_BYTES + 4 * node_bytes);
+        Self {
+            page_bytes,
+            node_bytes,
+            records: Vec::new(),
+            page: None,
+            page0_done: false,
+            page0_level_end: 0,
+            page0_level_count: (0, 0),
+            entries: Vec::new(),
+            pages: Vec::new(),
+            next_node: 0,
+        }
+    }
+
+    fn capacity(&self) -> usize {
+        self.page_bytes - PAGE_HEADER_BYTES - PAGE_CHECKSUM_BYTES
+    }
+
+    /// Adds one sibling group of packed records at `level`; `first_child`
+    /// is the breadth-first index of its first node's first child.
+    fn add_group(&mut self, level: u32, group: &[u8], first_child: u64) {
+        let group_nodes = (group.len() / self.node_bytes) as u64;
+        if self.page.is_some() && self.records.len() + group.len() > self.capacity() {
+            if self.entries.is_empty() {
+                self.flush_page0();
+            } else {
+                self.flush();
+            }
+        }
+        let level = level as u16;
+        let page = self.page.get_or_insert(PageHeader {
+            index: self.entries.len() as u32,
+            first_node: self.next_node,
+            first_child,
+            node_count: 0,
+            level_min: level,
+            level_max: level,
+        });
+        page.node_count += group_nodes as u32;
+        page.level_max = level;
+        self.next_node += group_nodes;
+        self.records.extend_from_slice(group);
+    }
+
+    /// Called after each complete level: remembers where page 0 could end.
+    fn end_level(&mut self) {
+        if self.entries.is_empty()
+            && !self.page0_done
+            && let Some(p) = &self.page
+        {
+            self.page0_level_end = self.records.len();
+            self.page0_level_count = (u32::from(p.level_max), u64::from(p.node_count));
+        }
+    }
+
+    /// Ends page 0 at the last complete level; what follows starts page 1.
+    fn flush_page0(&mut self) {
+        self.page0_done = true;
+        let Some(page) = self.page.take() else { return };
+        let (level_max, count) = self.page0_level_count;
+        if count == 0 || count == u64::from(page.node_count) {
+            self.page = Some(page);
+            self.flush();
+            return;
+        }
+        let head = PageHeader {
+            node_count: count as u32,
+            level_max: level_max as u16,
+            ..page
+        };
+        let tail_records = self.records.split_off(self.page0_level_end);
+        self.page = Some(head);
+        self.flush();
+        // The rest of the open page becomes the start of page 1. Its first
+        // child is found by walking the child counts of page 0's records.
+        let first_child = page0_next_child(&self.pages[0], head, self.node_bytes);
+        self.records = tail_records;
+        self.page = Some(PageHeader {
+            index: 1,
+            first_node: head.first_node + count,
+            first_child,
+            node_count: page.node_count - count as u32,
+            level_min: level_max as u16 + 1,
+            level_max: page.level_max,
+        });
+        if self.records.len() > self.capacity() {
+            self.flush();
+        }
+    }
+
+    fn flush(&mut self) {
+        let Some(header) = self.page.take() else {
+            return;
+        };
+        let (bytes, checksum) = encode_page(&header, &self.records);
+        self.entries
+            .push(PageEntry::of(&header, bytes.len(), checksum));
+        self.pages.push(bytes);
+        self.records.clear();
+    }
+
+    fn finish(mut self) -> (Vec<PageEntry>, Vec<Vec<u8>>) {
+        self.flush();
+        (self.entries, self.pages)
+    }
+}
+
+/// The breadth-first index of the first child of the node after page 0.
+fn page0_next_child(page0: &[u8], header: PageHeader, node_bytes: usize) -> u64 {
+    let records = &page0[PAGE_HEADER_BYTES..page0.len() - PAGE_CHECKSUM_BYTES];
+    let mut next = header.first_child;
+    for chunk in records.chunks_exact(node_bytes) {
+        let mut word = [0u8; 8];
+        word[..node_bytes].copy_from_slice(chunk);
+        next += NodeRecord::child_count(u64::from_le_bytes(word)) as u64;
+    }
+    next
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn windows_cut_levels_at_the_chunk_and_mark_each_levels_first() {
+        let list = |start: u32, len: u32| (start..start + len).collect::<Vec<u32>>();
+        let chunk = LAYOUT_CHUNK as u32;
+        let mut windows = Windows::default();
+        assert!(windows.take().is_none(), "no levels, no windows");
+        windows.next = vec![list(0, chunk + 10), list(2 * chunk, 5)];
+
+        let first = windows.take().unwrap();
+        assert!(first.starts_level);
+        assert_eq!((first.depth, first.parents), (1, chunk as usize + 10));
+        // Its tasks are its parents, in order, each once; one long list
+        // is shared between several tasks.
+        let parents: Vec<u32> = first.tasks().flatten().copied().collect();
+        assert_eq!(parents, list(0, chunk + 10));
+        assert!(first.tasks().count() > 1, "one list, one task");
+
+        let second = windows.take().unwrap();
+        assert!(!second.starts_level);
+        assert_eq!(
+            (second.depth, second.lists.clone()),
+            (1, vec![list(2 * chunk, 5)])
+        );
+
+        // The next level arrives as the last window is quantized.
+        windows.next.push(list(7, 3));
+        let third = windows.take().unwrap();
+        assert!(third.starts_level);
+        assert_eq!((third.depth, third.parents), (2, 3));
+        assert!(windows.take().is_none());
+        assert_eq!(windows.depth, 2, "the deepest level's depth is kept");
+    }
+}

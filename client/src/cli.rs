@@ -1,0 +1,278 @@
+//! The `farfield` command line's arguments, and the dispatch to
+//! [`crate::commands`]. `main.rs` only parses, runs and exits.
+
+use std::path::PathBuf;
+
+use clap::{Parser, Subcommand, ValueEnum};
+use farfield_view::camera_spec::{CameraSpec, parse_camera, parse_orbit, parse_size};
+use farfield_view::render_job::Source;
+
+use crate::commands;
+
+/// Browse farfield scenes, streamed from a memory server or from a file.
+#[derive(Debug, Parser)]
+#[command(name = "farfield", version, about)]
+pub struct Cli {
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+#[derive(Debug, Subcommand)]
+pub enum Command {
+    /// Render one view to a PNG, streaming pages from a server or reading a file.
+    Render(Box<RenderArgs>),
+    /// Measure the memory server on loopback: time to first image, overfetch,
+    /// throughput with 1 and N clients next to plain TCP, memory while streaming.
+    BenchStream {
+        /// A paged file to serve (the server runs in this process).
+        scene: PathBuf,
+        /// Client counts to measure, e.g. 1,16.
+        #[arg(long, value_delimiter = ',', default_value = "1,16")]
+        clients: Vec<usize>,
+        /// Seconds of streaming per client count.
+        #[arg(long, default_value_t = 5.0)]
+        seconds: f64,
+        /// Server page cache, MiB (smaller than the scene shows memory stays flat).
+        #[arg(long, default_value_t = 16)]
+        cache_mib: u64,
+        /// Repeats of the time-to-first-image measurement.
+        #[arg(long, default_value_t = 9)]
+        repeats: usize,
+        #[arg(long)]
+        json: bool,
+    },
+    /// The color-cube paper's Table 2: full geometry against the cube
+    /// hierarchy at several distances, with speedups and image error.
+    BenchCubes(Box<BenchCubesArgs>),
+    /// Error against run time: sweep a mode's parameter over cameras, against a reference.
+    Bench(Box<BenchArgs>),
+    /// One HTML page (plots, tables, machine, the papers' figures) from bench folders.
+    Report {
+        /// Folders written by `farfield bench --out`.
+        #[arg(required = true)]
+        dirs: Vec<PathBuf>,
+        #[arg(long)]
+        out: PathBuf,
+    },
+    /// Build the default scene, serve it in-process, fly a client through it.
+    Demo {
+        /// Folder for the scene file, frames, CSV and summary.
+        #[arg(long, default_value = "farfield-demo")]
+        out: PathBuf,
+    },
+    /// Compare two PNGs: RMSE, PSNR and wrong-pixel fraction (exit 2 if sizes differ).
+    Compare {
+        /// The reference image.
+        a: PathBuf,
+        /// The image to measure against it.
+        b: PathBuf,
+        /// A pixel is wrong when any RGB channel differs by more than this.
+        #[arg(long, default_value_t = 8)]
+        tolerance: u8,
+        /// Print JSON; an infinite PSNR (identical images) is the string "inf".
+        #[arg(long)]
+        json: bool,
+    },
+    /// Run the reference traversal on a paged file and report the cut.
+    Traverse {
+        #[arg(long)]
+        file: PathBuf,
+        #[arg(long, value_parser = parse_orbit, default_value = "azimuth=30,elevation=25,distance=2.5")]
+        orbit: CameraSpec,
+        #[arg(long, value_parser = parse_size, default_value = "1024x768")]
+        size: (u32, u32),
+        #[arg(long, default_value_t = 1.0)]
+        threshold: f64,
+        #[arg(long)]
+        json: bool,
+    },
+}
+
+/// Where a scene comes from: a memory server, or a file.
+#[derive(Debug, clap::Args)]
+pub struct SourceArgs {
+    /// Memory server, e.g. http://127.0.0.1:7878 (pages then stream).
+    #[arg(long, requires = "scene", conflicts_with = "file")]
+    pub server: Option<String>,
+    /// Scene name on the server.
+    #[arg(long)]
+    pub scene: Option<String>,
+    /// Read a paged file directly (everything resident, no server).
+    #[arg(long, required_unless_present = "server")]
+    pub file: Option<PathBuf>,
+}
+
+impl SourceArgs {
+    pub fn into_source(self) -> anyhow::Result<Source> {
+        Ok(match (self.server, self.scene, self.file) {
+            (Some(url), Some(scene), None) => Source::Server { url, scene },
+            (None, _, Some(path)) => Source::File(path),
+            _ => anyhow::bail!("give --server URL --scene NAME, or --file FILE"),
+        })
+    }
+}
+
+#[derive(Debug, clap::Args)]
+pub struct BenchArgs {
+    #[command(flatten)]
+    pub source: SourceArgs,
+    /// Cameras: the keyframes of this path (JSON); default an orbit at 1.75, 3.5 and 7 radii.
+    #[arg(long)]
+    pub path: Option<PathBuf>,
+    /// spheres, cubes or geometry.
+    #[arg(long)]
+    pub mode: String,
+    /// PARAM=v1,v2,...: threshold or kernel (spheres), eps or coverage (cubes), full=all (geometry).
+    #[arg(long)]
+    pub sweep: String,
+    /// A setting held fixed while sweeping, e.g. kernel=square (repeatable).
+    #[arg(long = "set", value_name = "PARAM=VALUE")]
+    pub set: Vec<String>,
+    /// The scene's input (files or gen: scenes): the geometry mode's triangles, and the reference.
+    #[arg(long = "input")]
+    pub inputs: Vec<String>,
+    #[arg(long = "param", value_name = "KEY=VALUE")]
+    pub params: Vec<String>,
+    #[arg(long, value_parser = parse_size, default_value = "320x240")]
+    pub size: (u32, u32),
+    #[arg(long, default_value_t = 3)]
+    pub repeats: u32,
+    /// Folder for bench.csv, progress.csv, meta.json and the plots.
+    #[arg(long)]
+    pub out: PathBuf,
+    #[arg(long, default_value_t = 120.0)]
+    pub timeout_s: f64,
+}
+
+#[derive(Debug, clap::Args)]
+pub struct BenchCubesArgs {
+    /// A cube hierarchy (`farfield-server build --kind cubes`).
+    #[arg(long)]
+    pub file: PathBuf,
+    /// The inputs it was built from: the full-geometry reference.
+    #[arg(long = "input", required = true)]
+    pub inputs: Vec<String>,
+    /// Generator parameters of the inputs, `key=value`.
+    #[arg(long = "param", value_name = "KEY=VALUE")]
+    pub params: Vec<String>,
+    /// Eye distances from the scene centre, in scene radii.
+    #[arg(long, value_delimiter = ',', default_value = "1.75,3.5,7,14")]
+    pub distances: Vec<f64>,
+    /// Degrees off the octree's x axis (the paper: 30 for the tree, 25 for the molecule).
+    #[arg(long, default_value_t = 30.0)]
+    pub azimuth: f64,
+    #[arg(long, default_value_t = 0.0)]
+    pub elevation: f64,
+    /// The paper's images were 124x124.
+    #[arg(long, value_parser = parse_size, default_value = "124x124")]
+    pub size: (u32, u32),
+    #[arg(long, default_value_t = 1.0)]
+    pub eps: f64,
+    #[arg(long, default_value = "alpha")]
+    pub coverage: farfield_render::Coverage,
+    #[arg(long, default_value_t = 5)]
+    pub repeats: usize,
+    /// Write each distance's geometry and hierarchy images here.
+    #[arg(long)]
+    pub images: Option<PathBuf>,
+    #[arg(long)]
+    pub json: bool,
+}
+
+#[derive(Debug, Clone, Copy, ValueEnum)]
+pub enum KernelArg {
+    Square,
+    Round,
+}
+
+#[derive(Debug, clap::Args)]
+pub struct RenderArgs {
+    #[command(flatten)]
+    pub source: SourceArgs,
+    /// eye=x,y,z,target=x,y,z,fov=DEG (world units).
+    #[arg(long, value_parser = parse_camera, conflicts_with = "orbit")]
+    pub camera: Option<CameraSpec>,
+    /// azimuth=DEG,elevation=DEG,distance=R (R in scene radii from the centre).
+    #[arg(long, value_parser = parse_orbit)]
+    pub orbit: Option<CameraSpec>,
+    #[arg(long, value_parser = parse_size, default_value = "800x600")]
+    pub size: (u32, u32),
+    /// The PNG to write; with --path, the folder for frames.csv (and frames).
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Fly a camera path (JSON keyframes) instead of one camera.
+    #[arg(long, conflicts_with_all = ["camera", "orbit"])]
+    pub path: Option<PathBuf>,
+    /// Frames per path second, with --path.
+    #[arg(long, default_value_t = 10.0)]
+    pub fps: f64,
+    /// With --path, also write every frame as a PNG.
+    #[arg(long)]
+    pub write_frames: bool,
+    /// Stop when refined (default), after N frames, or after T milliseconds.
+    #[arg(long, value_parser = ["refined"], conflicts_with_all = ["frames", "ms"])]
+    pub until: Option<String>,
+    #[arg(long)]
+    pub frames: Option<u64>,
+    #[arg(long)]
+    pub ms: Option<f64>,
+    /// Final projected-size threshold in pixels (spheres: splat size;
+    /// cubes: eps, see --eps).
+    #[arg(long, default_value_t = 1.0)]
+    pub threshold: f64,
+    /// Cube hierarchies: draw a cell as its color-cube when its projected
+    /// edge is under this many pixels; 0 draws the geometry everywhere (the
+    /// reference). The same setting as --threshold.
+    #[arg(long, conflicts_with = "threshold")]
+    pub eps: Option<f64>,
+    /// Cube hierarchies: `alpha` (coverage is transparency, 1996) or
+    /// `threshold[:T]` (faces covered less than T, default 0.5, are
+    /// dropped, the rest drawn opaque, 1995).
+    #[arg(long, default_value = "alpha")]
+    pub coverage: farfield_render::Coverage,
+    #[arg(long, value_enum, default_value = "square")]
+    pub kernel: KernelArg,
+    /// Client page cache, MiB.
+    #[arg(long, default_value_t = 1024)]
+    pub cache_mib: u64,
+    /// Let the server push pages it predicts when idle.
+    #[arg(long)]
+    pub push: bool,
+    /// Give up after this many seconds (the image so far is still written).
+    #[arg(long, default_value_t = 120.0)]
+    pub timeout_s: f64,
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// Runs one parsed command line.
+pub fn run(cli: Cli) -> anyhow::Result<()> {
+    match cli.command {
+        Command::Compare {
+            a,
+            b,
+            tolerance,
+            json,
+        } => commands::compare::run(&a, &b, tolerance, json),
+        Command::Render(args) => commands::render::run(*args),
+        Command::Bench(args) => commands::measure::bench(*args),
+        Command::Report { dirs, out } => commands::measure::report(&dirs, &out),
+        Command::BenchCubes(args) => commands::measure::bench_cubes(*args),
+        Command::BenchStream {
+            scene,
+            clients,
+            seconds,
+            cache_mib,
+            repeats,
+            json,
+        } => commands::measure::bench_stream(&scene, clients, seconds, cache_mib, repeats, json),
+        Command::Demo { out } => commands::demo::print(out),
+        Command::Traverse {
+            file,
+            orbit,
+            size,
+            threshold,
+            json,
+        } => commands::traverse::run(&file, orbit, size, threshold, json),
+    }
+}

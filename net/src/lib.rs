@@ -1,0 +1,33 @@
+//! farfield-net: the client's side of a session with a memory server.
+//!
+//! The protocol's state and the bytes on the wire are apart:
+//!
+//! - [`session`]: [`Session`], the state machine (hello, header, requests
+//!   and cancels, acknowledgements, checksum failures, pages given up,
+//!   reconnects with backoff), over any transport;
+//! - [`transport`]: the [`Transport`] seam, binary frames in and out;
+//! - [`websocket`]: the native transport (not built for wasm32, where a
+//!   browser `WebSocket` takes its place);
+//! - [`memory`]: an in-memory transport for tests;
+//! - [`url`]: the stream URL of a scene, spelled once; [`stats`]: the
+//!   session's counters.
+//!
+//! Nothing here needs a multi-thread runtime: the session is driven by its
+//! owner's loop ([`Session::pump`]), and the native transport keeps its
+//! sockets on a current-thread runtime of its own.
+
+pub mod memory;
+pub mod session;
+pub mod stats;
+pub mod transport;
+pub mod url;
+#[cfg(not(target_arch = "wasm32"))]
+pub mod websocket;
+
+#[cfg(test)]
+mod tests;
+
+pub use session::{MAX_PAGE_FAILURES, Session, SessionError, SessionEvent, SessionOptions};
+pub use stats::{FailedPage, NetStats};
+pub use transport::{Transport, TransportEvent};
+pub use url::stream_url;

@@ -1,0 +1,461 @@
+//! [`Session`]: the protocol's state on the client, over any [`Transport`].
+//!
+//! Everything a client must remember about a session lives here and
+//! nowhere else: the hello, the scene's header, which pages were asked for
+//! (with what priority) and which were cancelled, the acknowledgements,
+//! the pages that failed their checksum (asked for again, given up after
+//! [`MAX_PAGE_FAILURES`]) or that the server cannot send (given up at
+//! once), and reconnecting with backoff. The transport only moves frames;
+//! the caller (the viewer's resident pages) only verifies and keeps pages.
+//!
+//! When the connection drops the session reports it, waits (50 ms,
+//! doubling to 2 s) and reconnects; the server forgot the wishes, so the
+//! caller's next [`Session::request`] asks again for whatever it still
+//! lacks, and nothing it holds is fetched twice. A refusal (an unknown
+//! scene's 404) ends the session with the server's reason, since retrying
+//! cannot change it, and so does a server never reached within
+//! [`SessionOptions::first_connect_grace`].
+
+use std::collections::HashMap;
+use std::time::Duration;
+
+use bytes::Bytes;
+use farfield_protocol::FormatError;
+use farfield_protocol::codec::{self, CodecError};
+use farfield_protocol::file::FileHeader;
+use farfield_protocol::messages::{
+    ClientMessage, FrameKind, PROTOCOL_VERSION, PageWish, ServerMessage,
+};
+use farfield_protocol::page::claimed_index;
+use farfield_traverse::WantedPage;
+use web_time::Instant;
+
+use crate::stats::{FailedPage, NetStats};
+use crate::transport::{Transport, TransportEvent};
+
+/// Checksum failures after which a page is given up on.
+pub const MAX_PAGE_FAILURES: u32 = 3;
+
+/// The first wait before reconnecting; it doubles up to [`MAX_BACKOFF`].
+const FIRST_BACKOFF: Duration = Duration::from_millis(50);
+const MAX_BACKOFF: Duration = Duration::from_secs(2);
+
+/// What a client announces in its hello (`max_in_flight_bytes`,
+/// `allow_push`), and how long it tries to connect at first.
+#[derive(Debug, Clone, Copy)]
+pub struct SessionOptions {
+    pub max_in_flight_bytes: u64,
+    pub allow_push: bool,
+    /// How long a session that has never connected keeps trying: a wrong
+    /// address or a server that is not running should fail in seconds, not
+    /// at the render's timeout. Once connected, a session retries for as
+    /// long as its owner waits (servers restart).
+    pub first_connect_grace: Duration,
+}
+
+impl Default for SessionOptions {
+    fn default() -> Self {
+        Self {
+            max_in_flight_bytes: 4 << 20,
+            allow_push: false,
+            first_connect_grace: Duration::from_secs(10),
+        }
+    }
+}
+
+/// What a session hands its owner.
+#[derive(Debug, Clone, PartialEq)]
+pub enum SessionEvent {
+    /// The scene's header, on the first connection (a reconnect to the
+    /// same scene says nothing).
+    Header(FileHeader),
+    /// A page's stored bytes, unverified: the owner checks them and calls
+    /// [`Session::page_rejected`] when they fail. Already acknowledged.
+    Page { index: u32, bytes: Bytes },
+}
+
+/// Why a session ended. It does not recover: the owner stops.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum SessionError {
+    /// Refused by the server, or not reached within the first-connection
+    /// grace.
+    #[error("{0}")]
+    GaveUp(String),
+    /// The server said something fatal (or speaks another version).
+    #[error("server: {0}")]
+    Server(String),
+    #[error("scene header from the server: {0}")]
+    BadHeader(FormatError),
+    #[error("the server's scene changed under this session")]
+    SceneChanged,
+    #[error("the session has ended")]
+    Ended,
+}
+
+/// Where the connection stands.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Link {
+    /// An attempt is under way.
+    Connecting,
+    /// Open (frames flow); `header` once this connection sent the header.
+    Open {
+        header: bool,
+    },
+    /// Waiting to try again.
+    Waiting {
+        until: Instant,
+    },
+    Ended,
+}
+
+/// The client's side of one scene's session.
+#[derive(Debug)]
+pub struct Session<T: Transport> {
+    transport: T,
+    url: String,
+    options: SessionOptions,
+    link: Link,
+    connected_once: bool,
+    first_deadline: Instant,
+    backoff: Duration,
+    header: Option<FileHeader>,
+    /// Asked for and not yet arrived: page -> priority sent.
+    requested: HashMap<u32, f32>,
+    /// Per page that failed: how often, and the last reason.
+    failures: HashMap<u32, (u32, String)>,
+    pub stats: NetStats,
+}
+
+impl<T: Transport> Session<T> {
+    /// Starts connecting to `url` (see [`crate::stream_url`]).
+    pub fn open(mut transport: T, url: String, options: SessionOptions) -> Self {
+        transport.connect(&url);
+        Self {
+            transport,
+            url,
+            options,
+            link: Link::Connecting,
+            connected_once: false,
+            first_deadline: Instant::now() + options.first_connect_grace,
+            backoff: FIRST_BACKOFF,
+            header: None,
+            requested: HashMap::new(),
+            failures: HashMap::new(),
+            stats: NetStats::default(),
+        }
+    }
+
+    /// The scene's header, once it arrived.
+    pub fn header(&self) -> Option<&FileHeader> {
+        self.header.as_ref()
+    }
+
+    /// Whether this connection is open and has sent the scene's header (a
+    /// request now reaches the server).
+    pub fn is_connected(&self) -> bool {
+        self.link == Link::Open { header: true }
+    }
+
+    /// Pages asked for and not yet arrived.
+    pub fn outstanding(&self) -> usize {
+        self.requested.len()
+    }
+
+    /// Takes everything that has arrived, waiting up to `wait` for the
+    /// first event when none is queued, and acknowledges the pages. An
+    /// error ends the session.
+    pub fn pump(&mut self, wait: Duration) -> Result<Vec<SessionEvent>, SessionError> {
+        let mut out = Vec::new();
+        let mut acks = Vec::new();
+        let result = self.pump_into(wait, &mut out, &mut acks);
+        if result.is_err() {
+            self.transport.close();
+            self.link = Link::Ended;
+        }
+        if !acks.is_empty() && matches!(self.link, Link::Open { .. }) {
+            self.send(&ClientMessage::Received { pages: acks });
+        }
+        result.map(|()| out)
+    }
+
+    fn pump_into(
+        &mut self,
+        wait: Duration,
+        out: &mut Vec<SessionEvent>,
+        acks: &mut Vec<u32>,
+    ) -> Result<(), SessionError> {
+        self.on_timers()?;
+        let wait = match self.link {
+            Link::Ended => return Err(SessionError::Ended),
+            // Wake for the timers: a reconnect, or the first-connect grace.
+            Link::Waiting { until } => wait.min(until.saturating_duration_since(Instant::now())),
+            Link::Connecting if !self.connected_once => wait.min(
+                self.first_deadline
+                    .saturating_duration_since(Instant::now()),
+            ),
+            _ => wait,
+        };
+        let mut next = self.transport.poll(wait);
+        if next.is_none() {
+            self.on_timers()?;
+        }
+        while let Some(event) = next {
+            self.on_transport(event, out, acks)?;
+            next = self.transport.poll(Duration::ZERO);
+        }
+        Ok(())
+    }
+
+    /// Reconnects when the wait is over; gives up an attempt that the
+    /// first-connect grace has run out on.
+    fn on_timers(&mut self) -> Result<(), SessionError> {
+        let now = Instant::now();
+        match self.link {
+            Link::Waiting { until } if now >= until => {
+                self.transport.connect(&self.url);
+                self.link = Link::Connecting;
+            }
+            // An attempt may not outlast the grace (a silently dropped
+            // connect would otherwise wait minutes).
+            Link::Connecting if !self.connected_once && now >= self.first_deadline => {
+                self.transport.close();
+                let reason = format!("connect {}: no answer", self.url);
+                return Err(self.give_up_reaching(&reason));
+            }
+            _ => {}
+        }
+        Ok(())
+    }
+
+    fn give_up_reaching(&self, reason: &str) -> SessionError {
+        SessionError::GaveUp(format!(
+            "cannot reach the server within {:.0} s: {reason}",
+            self.options.first_connect_grace.as_secs_f64()
+        ))
+    }
+
+    fn on_transport(
+        &mut self,
+        event: TransportEvent,
+        out: &mut Vec<SessionEvent>,
+        acks: &mut Vec<u32>,
+    ) -> Result<(), SessionError> {
+        match event {
+            TransportEvent::Opened => {
+                self.connected_once = true;
+                self.link = Link::Open { header: false };
+                self.send(&ClientMessage::Hello {
+                    protocol_version: PROTOCOL_VERSION,
+                    max_in_flight_bytes: self.options.max_in_flight_bytes,
+                    allow_push: self.options.allow_push,
+                });
+                Ok(())
+            }
+            TransportEvent::Frame(frame) => match self.on_frame(frame, out, acks) {
+                Ok(result) => result,
+                Err(e) => {
+                    self.transport.close();
+                    self.disconnected(format!("bad frame from server: {e}"))
+                }
+            },
+            // Nothing is connecting: stale news of an abandoned attempt.
+            TransportEvent::Closed { .. } if matches!(self.link, Link::Waiting { .. }) => Ok(()),
+            TransportEvent::Closed { reason, refused } => {
+                if refused {
+                    return Err(SessionError::GaveUp(reason));
+                }
+                self.disconnected(reason)
+            }
+        }
+    }
+
+    /// One frame from the server. The outer error is a frame that does not
+    /// decode (the connection is dropped); the inner one ends the session.
+    fn on_frame(
+        &mut self,
+        frame: Bytes,
+        out: &mut Vec<SessionEvent>,
+        acks: &mut Vec<u32>,
+    ) -> Result<Result<(), SessionError>, CodecError> {
+        let (kind, _) = codec::frame_kind(&frame)?;
+        let body = frame.slice(1..);
+        match kind {
+            FrameKind::Page => self.on_page(body, out, acks),
+            FrameKind::Header => return Ok(self.on_header(&body, out)),
+            FrameKind::Control => match codec::decode_control::<ServerMessage>(&frame)? {
+                ServerMessage::Hello {
+                    protocol_version, ..
+                } if protocol_version != PROTOCOL_VERSION => {
+                    return Ok(Err(SessionError::Server(format!(
+                        "server speaks protocol version {protocol_version}, this client {PROTOCOL_VERSION}"
+                    ))));
+                }
+                ServerMessage::Hello { .. } => {}
+                ServerMessage::Error { message, fatal } => {
+                    tracing::warn!("server: {message}");
+                    self.stats.last_error = Some(message.clone());
+                    if fatal {
+                        return Ok(Err(SessionError::Server(message)));
+                    }
+                }
+                ServerMessage::PageUnavailable { page, reason } => {
+                    tracing::warn!("giving up page {page}: {reason}");
+                    self.stats.pages_unavailable += 1;
+                    self.stats.last_error = Some(reason.clone());
+                    self.requested.remove(&page);
+                    // Given up at once: the server's copy will not heal.
+                    self.failures.insert(page, (MAX_PAGE_FAILURES, reason));
+                }
+            },
+        }
+        Ok(Ok(()))
+    }
+
+    fn on_header(&mut self, bytes: &[u8], out: &mut Vec<SessionEvent>) -> Result<(), SessionError> {
+        let header = FileHeader::decode(bytes).map_err(SessionError::BadHeader)?;
+        match &self.header {
+            Some(h) if *h != header => return Err(SessionError::SceneChanged),
+            Some(_) => {}
+            None => {
+                out.push(SessionEvent::Header(header.clone()));
+                self.header = Some(header);
+            }
+        }
+        self.link = Link::Open { header: true };
+        self.requested.clear();
+        Ok(())
+    }
+
+    fn on_page(&mut self, bytes: Bytes, out: &mut Vec<SessionEvent>, acks: &mut Vec<u32>) {
+        self.stats.bytes_received += bytes.len() as u64;
+        self.stats.pages_received += 1;
+        // Bytes that do not even name a page cannot be filed or acknowledged.
+        let Some(index) = claimed_index(&bytes) else {
+            return;
+        };
+        if self.header.is_none() {
+            return;
+        }
+        self.requested.remove(&index);
+        acks.push(index);
+        out.push(SessionEvent::Page { index, bytes });
+    }
+
+    /// The connection is gone: forget what the server forgot and wait
+    /// before trying again, or give up when the server was never reached
+    /// and the grace would run out first.
+    fn disconnected(&mut self, reason: String) -> Result<(), SessionError> {
+        let was_open = matches!(self.link, Link::Open { .. });
+        if was_open {
+            self.backoff = FIRST_BACKOFF;
+        }
+        let now = Instant::now();
+        // Give up now rather than start an attempt the deadline would cut
+        // short, whose "no answer" would hide this attempt's reason.
+        if !self.connected_once && now + self.backoff >= self.first_deadline {
+            return Err(self.give_up_reaching(&reason));
+        }
+        if self.link == (Link::Open { header: true }) {
+            tracing::warn!("connection lost: {reason}; reconnecting");
+            self.stats.disconnects += 1;
+        }
+        self.stats.last_error = Some(reason);
+        // The server forgot our wishes with the connection.
+        self.requested.clear();
+        self.link = Link::Waiting {
+            until: now + self.backoff,
+        };
+        self.backoff = (self.backoff * 2).min(MAX_BACKOFF);
+        Ok(())
+    }
+
+    /// Reports that the page `index` just handed out failed verification:
+    /// it is counted and asked for again until it has failed
+    /// [`MAX_PAGE_FAILURES`] times.
+    pub fn page_rejected(&mut self, index: u32, error: &FormatError) {
+        self.stats.pages_rejected += 1;
+        let reason = format!("page {index}: {error}");
+        let (failures, last) = self.failures.entry(index).or_default();
+        *failures += 1;
+        *last = reason.clone();
+        tracing::warn!(
+            "page {index} rejected ({error}); attempt {failures} of {MAX_PAGE_FAILURES}"
+        );
+        self.stats.last_error = Some(reason);
+    }
+
+    /// Sends new wishes and cancels stale ones. `wanted` is the traversal's
+    /// list (most urgent first); a wish whose priority moved by less than a
+    /// quarter is not sent again.
+    pub fn request(&mut self, wanted: &[WantedPage]) {
+        if !self.is_connected() {
+            return;
+        }
+        let mut new = Vec::new();
+        let mut still: HashMap<u32, f32> = HashMap::with_capacity(wanted.len());
+        for w in wanted {
+            if self.gave_up(w.page) {
+                continue;
+            }
+            let priority = w.priority.min(f64::from(f32::MAX)) as f32;
+            still.insert(w.page, priority);
+            match self.requested.get(&w.page) {
+                Some(&p) if (p - priority).abs() <= 0.25 * p.abs() => {}
+                _ => new.push(PageWish {
+                    page: w.page,
+                    priority,
+                }),
+            }
+        }
+        let stale: Vec<u32> = self
+            .requested
+            .keys()
+            .copied()
+            .filter(|p| !still.contains_key(p))
+            .collect();
+        if !stale.is_empty() {
+            self.stats.pages_cancelled += stale.len() as u64;
+            for p in &stale {
+                self.requested.remove(p);
+            }
+            self.send(&ClientMessage::Cancel { pages: stale });
+        }
+        if !new.is_empty() {
+            self.stats.pages_requested += new
+                .iter()
+                .filter(|w| !self.requested.contains_key(&w.page))
+                .count() as u64;
+            for w in &new {
+                self.requested.insert(w.page, w.priority);
+            }
+            self.send(&ClientMessage::Request { pages: new });
+        }
+    }
+
+    fn send(&mut self, message: &ClientMessage) {
+        self.transport.send(codec::encode_control(message));
+    }
+
+    /// Pages given up on (repeated checksum failures, or the server cannot
+    /// send them), by page index, with the last reason of each.
+    pub fn failed_pages(&self) -> Vec<FailedPage> {
+        let mut failed: Vec<FailedPage> = self
+            .failures
+            .iter()
+            .filter(|&(&page, _)| self.gave_up(page))
+            .map(|(&page, (_, reason))| FailedPage {
+                page,
+                reason: reason.clone(),
+            })
+            .collect();
+        failed.sort_unstable_by_key(|f| f.page);
+        failed
+    }
+
+    /// Whether `page` was given up on: it is not asked for again.
+    pub fn gave_up(&self, page: u32) -> bool {
+        self.failures
+            .get(&page)
+            .is_some_and(|&(count, _)| count >= MAX_PAGE_FAILURES)
+    }
+}

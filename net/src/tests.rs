@@ -1,0 +1,315 @@
+//! The session's state machine without a socket: an in-memory transport
+//! plays the server, byte for byte.
+
+use std::time::Duration;
+
+use farfield_builder::import::{Params, load_input};
+use farfield_builder::{BuildOptions, PagedFile, build_spheres};
+use farfield_protocol::codec::{
+    decode_control, encode_control, encode_header_frame, encode_page_frame,
+};
+use farfield_protocol::hierarchy::Hierarchy;
+use farfield_protocol::messages::{ClientMessage, PROTOCOL_VERSION, ServerMessage};
+use farfield_traverse::WantedPage;
+
+use super::*;
+use crate::memory::MemoryTransport;
+
+/// A small generated scene with several pages.
+fn scene() -> PagedFile {
+    let mut params = Params::default();
+    params.set("size", 64);
+    params.set("trees", 1);
+    let (file, _) = build_spheres(
+        load_input("gen:island", &params).expect("gen:island"),
+        &BuildOptions {
+            page_bytes: 1024,
+            ..BuildOptions::default()
+        },
+    )
+    .expect("build");
+    assert!(file.pages.len() >= 4, "{} pages", file.pages.len());
+    file
+}
+
+fn frame(bytes: Vec<u8>) -> TransportEvent {
+    TransportEvent::Frame(bytes.into())
+}
+
+fn server_hello() -> TransportEvent {
+    frame(encode_control(&ServerMessage::Hello {
+        protocol_version: PROTOCOL_VERSION,
+        server: "test".into(),
+    }))
+}
+
+/// A session whose transport has opened and delivered the header.
+fn connected(file: &PagedFile) -> (Session<MemoryTransport>, MemoryTransport) {
+    let wire = MemoryTransport::default();
+    let mut s = Session::open(
+        wire.clone(),
+        "ws://test/scenes/a/stream".into(),
+        SessionOptions::default(),
+    );
+    wire.push(TransportEvent::Opened);
+    wire.push(server_hello());
+    wire.push(frame(encode_header_frame(&file.header.encode())));
+    let events = s.pump(Duration::ZERO).expect("pump");
+    assert_eq!(events, vec![SessionEvent::Header(file.header.clone())]);
+    assert!(s.is_connected());
+    (s, wire)
+}
+
+/// The control messages the session sent since the last call.
+fn sent(wire: &MemoryTransport) -> Vec<ClientMessage> {
+    wire.take_sent()
+        .iter()
+        .map(|f| decode_control(f).expect("client message"))
+        .collect()
+}
+
+fn wanted(pages: &[u32]) -> Vec<WantedPage> {
+    pages
+        .iter()
+        .map(|&page| WantedPage {
+            page,
+            priority: 10.0,
+        })
+        .collect()
+}
+
+fn requested(messages: &[ClientMessage]) -> Vec<u32> {
+    let mut pages: Vec<u32> = messages
+        .iter()
+        .flat_map(|m| match m {
+            ClientMessage::Request { pages } => pages.iter().map(|w| w.page).collect(),
+            _ => Vec::new(),
+        })
+        .collect();
+    pages.sort_unstable();
+    pages
+}
+
+#[test]
+fn hello_first_then_requests_cancels_and_acknowledgements() {
+    let file = scene();
+    let (mut s, wire) = connected(&file);
+    let hello = sent(&wire);
+    assert!(
+        matches!(hello.as_slice(), [ClientMessage::Hello { protocol_version, .. }] if *protocol_version == PROTOCOL_VERSION),
+        "{hello:?}"
+    );
+    s.request(&wanted(&[1, 2, 3]));
+    assert_eq!(requested(&sent(&wire)), vec![1, 2, 3]);
+    assert_eq!(s.outstanding(), 3);
+    // The same wishes again send nothing; one dropped is cancelled.
+    s.request(&wanted(&[1, 2, 3]));
+    assert!(sent(&wire).is_empty());
+    s.request(&wanted(&[1, 2]));
+    assert!(matches!(sent(&wire).as_slice(), [ClientMessage::Cancel { pages }] if pages == &[3]),);
+    assert_eq!(s.stats.pages_cancelled, 1);
+    // A page that arrives is handed out and acknowledged in the same pump.
+    wire.push(frame(encode_page_frame(&file.pages[1])));
+    let events = s.pump(Duration::ZERO).expect("pump");
+    assert!(
+        matches!(events.as_slice(), [SessionEvent::Page { index: 1, bytes }] if bytes[..] == file.pages[1][..])
+    );
+    assert!(matches!(sent(&wire).as_slice(), [ClientMessage::Received { pages }] if pages == &[1]));
+    assert_eq!(s.outstanding(), 1);
+    assert_eq!(s.stats.pages_received, 1);
+    assert_eq!(s.stats.bytes_received, file.pages[1].len() as u64);
+}
+
+#[test]
+fn a_corrupt_page_is_asked_for_again_and_given_up_after_three_failures() {
+    let file = scene();
+    let (mut s, wire) = connected(&file);
+    let mut h = Hierarchy::new(file.header.clone()).expect("header");
+    h.insert_page(0, &file.pages[0]).expect("page 0");
+    let mut bad = file.pages[2].clone();
+    bad[40] ^= 0x20;
+    sent(&wire);
+    for attempt in 1..=MAX_PAGE_FAILURES {
+        s.request(&wanted(&[2]));
+        assert_eq!(
+            requested(&sent(&wire)),
+            vec![2],
+            "attempt {attempt} asks again"
+        );
+        wire.push(frame(encode_page_frame(&bad)));
+        for event in s.pump(Duration::ZERO).expect("pump") {
+            if let SessionEvent::Page { index, bytes } = event {
+                let error = h.insert_page(index, &bytes).expect_err("corrupt");
+                s.page_rejected(index, &error);
+            }
+        }
+        // Still acknowledged, so that it can be asked for again.
+        assert!(
+            matches!(sent(&wire).as_slice(), [ClientMessage::Received { pages }] if pages == &[2])
+        );
+        assert!(!h.is_resident(2));
+        assert_eq!(s.stats.pages_rejected, u64::from(attempt));
+    }
+    assert!(s.gave_up(2));
+    s.request(&wanted(&[2, 3]));
+    assert_eq!(
+        requested(&sent(&wire)),
+        vec![3],
+        "a page given up is not asked for"
+    );
+    let failed = s.failed_pages();
+    assert_eq!(failed.len(), 1);
+    assert_eq!(failed[0].page, 2);
+    assert!(failed[0].reason.contains("page 2"), "{failed:?}");
+    // The good bytes are still taken.
+    assert!(h.insert_page(2, &file.pages[2]).is_ok());
+}
+
+#[test]
+fn a_page_the_server_cannot_send_is_given_up_at_once() {
+    let file = scene();
+    let (mut s, wire) = connected(&file);
+    s.request(&wanted(&[1, 2]));
+    sent(&wire);
+    wire.push(frame(encode_control(&ServerMessage::PageUnavailable {
+        page: 2,
+        reason: "corrupt on disk".into(),
+    })));
+    assert!(s.pump(Duration::ZERO).expect("pump").is_empty());
+    assert!(s.gave_up(2));
+    assert_eq!(s.stats.pages_unavailable, 1);
+    assert_eq!(s.outstanding(), 1);
+}
+
+#[test]
+fn a_reconnect_waits_then_asks_again_only_for_what_is_missing() {
+    let file = scene();
+    let (mut s, wire) = connected(&file);
+    s.request(&wanted(&[1, 2, 3]));
+    wire.push(frame(encode_page_frame(&file.pages[1])));
+    s.pump(Duration::ZERO).expect("pump");
+    sent(&wire);
+    wire.push(TransportEvent::Closed {
+        reason: "server went away".into(),
+        refused: false,
+    });
+    s.pump(Duration::ZERO)
+        .expect("a lost connection is not an error");
+    assert!(!s.is_connected());
+    assert_eq!(s.stats.disconnects, 1);
+    assert_eq!(s.stats.last_error.as_deref(), Some("server went away"));
+    assert_eq!(s.outstanding(), 0, "the server forgot the wishes");
+    // Wishes while disconnected are not sent.
+    s.request(&wanted(&[2, 3]));
+    assert!(sent(&wire).is_empty());
+    assert_eq!(wire.connects().len(), 1);
+    // After the backoff the session connects again by itself.
+    s.pump(Duration::from_millis(200)).expect("pump");
+    s.pump(Duration::ZERO).expect("pump");
+    assert_eq!(wire.connects().len(), 2);
+    wire.push(TransportEvent::Opened);
+    wire.push(frame(encode_header_frame(&file.header.encode())));
+    let events = s.pump(Duration::ZERO).expect("pump");
+    assert!(
+        events.is_empty(),
+        "the same scene again says nothing: {events:?}"
+    );
+    assert!(s.is_connected());
+    // What the traversal still lacks (page 1 is resident) is asked for.
+    s.request(&wanted(&[2, 3]));
+    let messages = sent(&wire);
+    assert!(matches!(
+        messages.first(),
+        Some(ClientMessage::Hello { .. })
+    ));
+    assert_eq!(requested(&messages), vec![2, 3]);
+}
+
+#[test]
+fn another_scene_after_a_reconnect_ends_the_session() {
+    let file = scene();
+    let (mut s, wire) = connected(&file);
+    wire.push(TransportEvent::Closed {
+        reason: "restart".into(),
+        refused: false,
+    });
+    s.pump(Duration::ZERO).expect("pump");
+    s.pump(Duration::from_millis(200)).expect("pump");
+    s.pump(Duration::ZERO).expect("pump");
+    let mut params = Params::default();
+    params.set("size", 32);
+    let (other, _) = build_spheres(
+        load_input("gen:island", &params).expect("gen:island"),
+        &BuildOptions::default(),
+    )
+    .expect("build");
+    wire.push(TransportEvent::Opened);
+    wire.push(frame(encode_header_frame(&other.header.encode())));
+    assert_eq!(s.pump(Duration::ZERO), Err(SessionError::SceneChanged));
+    assert_eq!(s.pump(Duration::ZERO), Err(SessionError::Ended));
+}
+
+#[test]
+fn a_refusal_ends_the_session_with_the_servers_reason() {
+    let wire = MemoryTransport::default();
+    let mut s = Session::open(
+        wire.clone(),
+        "ws://x/scenes/nope/stream".into(),
+        SessionOptions::default(),
+    );
+    wire.push(TransportEvent::Closed {
+        reason: "ws://x/scenes/nope/stream: no scene named nope".into(),
+        refused: true,
+    });
+    let error = s.pump(Duration::ZERO).expect_err("refused");
+    assert_eq!(
+        error.to_string(),
+        "ws://x/scenes/nope/stream: no scene named nope"
+    );
+}
+
+#[test]
+fn a_server_never_reached_is_given_up_after_the_grace() {
+    let wire = MemoryTransport::default();
+    let options = SessionOptions {
+        first_connect_grace: Duration::from_millis(300),
+        ..SessionOptions::default()
+    };
+    let mut s = Session::open(wire.clone(), "ws://x/s".into(), options);
+    let started = web_time::Instant::now();
+    let mut refused = 0;
+    let error = loop {
+        // Each attempt is refused, as by a port nobody listens on.
+        if wire.connects().len() > refused {
+            refused += 1;
+            wire.push(TransportEvent::Closed {
+                reason: "connect ws://x/s: connection refused".into(),
+                refused: false,
+            });
+        }
+        match s.pump(Duration::from_millis(20)) {
+            Ok(_) => assert!(started.elapsed() < Duration::from_secs(5), "never gave up"),
+            Err(e) => break e,
+        }
+    };
+    let text = error.to_string();
+    assert!(
+        text.starts_with("cannot reach the server within 0 s"),
+        "{text}"
+    );
+    assert!(text.contains("connection refused"), "{text}");
+    assert!(wire.connects().len() >= 2, "it retried first");
+}
+
+#[test]
+fn a_server_of_another_protocol_version_ends_the_session() {
+    let wire = MemoryTransport::default();
+    let mut s = Session::open(wire.clone(), "ws://x/s".into(), SessionOptions::default());
+    wire.push(TransportEvent::Opened);
+    wire.push(frame(encode_control(&ServerMessage::Hello {
+        protocol_version: PROTOCOL_VERSION + 1,
+        server: "test".into(),
+    })));
+    let error = s.pump(Duration::ZERO).expect_err("other version");
+    assert!(error.to_string().contains("protocol version"), "{error}");
+}

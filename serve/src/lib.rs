@@ -1,0 +1,278 @@
+//! The memory server: scenes on disk, memory-mapped, streamed page by page
+//! to websocket clients (the 1995 report's section 6.2, with QSplat's
+//! breadth-first pages).
+//!
+//! [`start`] opens every `*.ff` file in a folder (or [`start_scenes`] a
+//! list), binds, and serves in the background of the current tokio runtime;
+//! the [`RunningServer`] it returns gives the bound address, metrics, and a
+//! graceful [`RunningServer::shutdown`]. The CLI's `serve` subcommand and
+//! the client's demo both embed it this way.
+//!
+//! - [`catalog`]: the scenes and their child-page ranges;
+//! - [`cache`]: the byte-bounded LRU of verified page frames;
+//! - [`prefetch`]: read-ahead of child pages on a small thread pool;
+//! - [`schedule`]: one connection's priority queue and in-flight window;
+//! - `session`: the websocket session itself;
+//! - `routes`: the HTTP endpoints;
+//! - [`metrics`]: atomics and the Prometheus text.
+
+pub mod cache;
+pub mod catalog;
+pub mod metrics;
+pub mod prefetch;
+mod routes;
+pub mod schedule;
+mod session;
+
+use std::net::SocketAddr;
+use std::path::PathBuf;
+use std::sync::Arc;
+use std::sync::atomic::Ordering;
+use std::time::Duration;
+
+use axum::serve::ListenerExt;
+use tokio::sync::{Notify, watch};
+use tokio::task::JoinHandle;
+
+use self::cache::PageCache;
+use self::catalog::Catalog;
+use self::metrics::{Metrics, MetricsSnapshot};
+use self::prefetch::Prefetcher;
+
+/// The page cache's default bound.
+pub const DEFAULT_CACHE_BYTES: u64 = 256 << 20;
+
+/// How long [`RunningServer::shutdown`] waits for open sessions to close.
+pub const SHUTDOWN_GRACE: Duration = Duration::from_secs(5);
+
+/// Why the server could not start or stop cleanly. Causes are fields named
+/// `error`, printed in the message (as in the importers' `ImportError`).
+#[derive(Debug, thiserror::Error)]
+pub enum ServeError {
+    #[error("scenes folder {path}: {error}")]
+    ScenesDir {
+        path: PathBuf,
+        error: std::io::Error,
+    },
+    #[error("two scenes are named {0:?}")]
+    DuplicateScene(String),
+    #[error("cannot listen on {addr}: {error}")]
+    Bind {
+        addr: SocketAddr,
+        error: std::io::Error,
+    },
+    #[error("cannot start the prefetch threads: {0}")]
+    Threads(std::io::Error),
+    #[error("server task failed: {0}")]
+    Task(String),
+}
+
+/// What to serve and where.
+#[derive(Debug, Clone)]
+pub struct ServerConfig {
+    /// Every `*.ff` file directly in this folder is a scene named by its stem.
+    pub scenes_dir: PathBuf,
+    /// Port 0 picks a free port; [`RunningServer::local_addr`] says which.
+    pub listen: SocketAddr,
+    /// Bound on the shared page cache, in bytes.
+    pub cache_bytes: u64,
+}
+
+impl ServerConfig {
+    /// A config with the default cache size.
+    pub fn new(scenes_dir: impl Into<PathBuf>, listen: SocketAddr) -> Self {
+        Self {
+            scenes_dir: scenes_dir.into(),
+            listen,
+            cache_bytes: DEFAULT_CACHE_BYTES,
+        }
+    }
+}
+
+/// Everything the handlers share.
+#[derive(Debug)]
+pub(crate) struct AppState {
+    pub catalog: Catalog,
+    pub cache: Arc<PageCache>,
+    pub metrics: Arc<Metrics>,
+    pub prefetch: Prefetcher,
+    /// Becomes `true` when the server is shutting down.
+    pub shutdown: watch::Receiver<bool>,
+    /// Signalled whenever a session ends.
+    pub session_ended: Notify,
+}
+
+/// A server running in the background of the current tokio runtime.
+/// Dropping it starts a shutdown without waiting for it.
+#[derive(Debug)]
+pub struct RunningServer {
+    local_addr: SocketAddr,
+    state: Arc<AppState>,
+    shutdown_tx: Arc<watch::Sender<bool>>,
+    task: Option<JoinHandle<std::io::Result<()>>>,
+}
+
+/// Starts shutting a server down from anywhere (a signal handler, a test).
+#[derive(Debug, Clone)]
+pub struct ShutdownHandle(Arc<watch::Sender<bool>>);
+
+impl ShutdownHandle {
+    /// Stops accepting connections and tells every session to close.
+    pub fn shutdown(&self) {
+        self.0.send_replace(true);
+    }
+}
+
+/// Serves every `*.ff` file in `config.scenes_dir`.
+pub async fn start(config: ServerConfig) -> Result<RunningServer, ServeError> {
+    let scenes = catalog::scan_dir(&config.scenes_dir)?;
+    start_scenes(scenes, config.listen, config.cache_bytes).await
+}
+
+/// Serves the given (name, path) pairs. Files that fail to open are logged
+/// and skipped.
+pub async fn start_scenes(
+    scenes: Vec<(String, PathBuf)>,
+    listen: SocketAddr,
+    cache_bytes: u64,
+) -> Result<RunningServer, ServeError> {
+    let catalog = Catalog::open(&scenes)?;
+    if catalog.is_empty() {
+        tracing::warn!("no scenes to serve");
+    }
+    let metrics = Arc::new(Metrics::default());
+    metrics
+        .scenes
+        .store(catalog.len() as u64, Ordering::Relaxed);
+    let cache = Arc::new(PageCache::new(cache_bytes, &metrics));
+    let prefetch =
+        Prefetcher::start(cache.clone(), metrics.clone()).map_err(ServeError::Threads)?;
+    let (shutdown_tx, shutdown_rx) = watch::channel(false);
+    let state = Arc::new(AppState {
+        catalog,
+        cache,
+        metrics,
+        prefetch,
+        shutdown: shutdown_rx.clone(),
+        session_ended: Notify::new(),
+    });
+    let listener = tokio::net::TcpListener::bind(listen)
+        .await
+        .map_err(|error| ServeError::Bind {
+            addr: listen,
+            error,
+        })?;
+    let local_addr = listener.local_addr().map_err(|error| ServeError::Bind {
+        addr: listen,
+        error,
+    })?;
+    let app = routes::router(state.clone());
+    let mut signal = shutdown_rx;
+    // Pages are written one frame at a time, each smaller than a loopback
+    // segment: with Nagle's algorithm on, every one would wait for the
+    // previous one's acknowledgement.
+    let listener = listener.tap_io(|tcp| {
+        if let Err(e) = tcp.set_nodelay(true) {
+            tracing::debug!("TCP_NODELAY: {e}");
+        }
+    });
+    let server = axum::serve(
+        listener,
+        app.into_make_service_with_connect_info::<SocketAddr>(),
+    )
+    .with_graceful_shutdown(async move {
+        // A dropped sender also means shut down.
+        let _ = signal.wait_for(|&stop| stop).await;
+    });
+    let task = tokio::spawn(async move { server.await });
+    tracing::info!(%local_addr, scenes = state.catalog.len(), cache_bytes, "listening");
+    Ok(RunningServer {
+        local_addr,
+        state,
+        shutdown_tx: Arc::new(shutdown_tx),
+        task: Some(task),
+    })
+}
+
+impl RunningServer {
+    /// The address actually bound (the real port when asked for port 0).
+    pub fn local_addr(&self) -> SocketAddr {
+        self.local_addr
+    }
+
+    /// The counters now.
+    pub fn metrics(&self) -> MetricsSnapshot {
+        self.state.metrics.snapshot()
+    }
+
+    /// The counters now, as `GET /metrics` renders them.
+    pub fn metrics_text(&self) -> String {
+        self.state.metrics.render()
+    }
+
+    /// Names of the scenes being served.
+    pub fn scenes(&self) -> Vec<String> {
+        self.state.catalog.iter().map(|s| s.name.clone()).collect()
+    }
+
+    /// A handle that starts the shutdown from elsewhere; await
+    /// [`RunningServer::shutdown`] to see it finish.
+    pub fn shutdown_handle(&self) -> ShutdownHandle {
+        ShutdownHandle(self.shutdown_tx.clone())
+    }
+
+    /// Whether a shutdown was asked for (by this server or a handle).
+    pub fn is_shutting_down(&self) -> bool {
+        *self.shutdown_tx.borrow()
+    }
+
+    /// Resolves once someone asks for a shutdown through a handle.
+    pub async fn shutdown_requested(&self) {
+        let mut rx = self.shutdown_tx.subscribe();
+        let _ = rx.wait_for(|&stop| stop).await;
+    }
+
+    /// Stops accepting, closes every session with a close frame ("server
+    /// shutting down"), waits up to [`SHUTDOWN_GRACE`] for them, and returns
+    /// the final counters.
+    pub async fn shutdown(mut self) -> Result<MetricsSnapshot, ServeError> {
+        self.shutdown_tx.send_replace(true);
+        if let Some(task) = self.task.take() {
+            match tokio::time::timeout(SHUTDOWN_GRACE, task).await {
+                Ok(Ok(Ok(()))) => {}
+                Ok(Ok(Err(e))) => return Err(ServeError::Task(e.to_string())),
+                Ok(Err(e)) => return Err(ServeError::Task(e.to_string())),
+                Err(_) => tracing::warn!("HTTP connections still open after the grace period"),
+            }
+        }
+        let drained = tokio::time::timeout(SHUTDOWN_GRACE, async {
+            loop {
+                let ended = self.state.session_ended.notified();
+                tokio::pin!(ended);
+                ended.as_mut().enable();
+                if self.state.metrics.connected_clients.load(Ordering::SeqCst) <= 0 {
+                    break;
+                }
+                ended.await;
+            }
+        })
+        .await;
+        if drained.is_err() {
+            tracing::warn!("sessions still open after the grace period");
+        }
+        let snapshot = self.state.metrics.snapshot();
+        tracing::info!(
+            pages_served = snapshot.pages_served,
+            bytes_served = snapshot.bytes_served,
+            connections = snapshot.connections_total,
+            "server stopped"
+        );
+        Ok(snapshot)
+    }
+}
+
+impl Drop for RunningServer {
+    fn drop(&mut self) {
+        self.shutdown_tx.send_replace(true);
+    }
+}

@@ -1,0 +1,138 @@
+//! farfield-traverse: resident pages + a view -> what to draw and what to
+//! fetch. One interface, [`Traversal`], one module per hierarchy kind.
+//!
+//! Traversal neither draws nor fetches: it reads a
+//! [`Hierarchy`](farfield_protocol::hierarchy::Hierarchy) (whichever pages
+//! are resident), walks it for one camera and yields a [`DrawList`] for the
+//! renderer and the [`WantedPage`]s, with priorities, for the client
+//! session. The frame loop, the benches and the CLI drive every kind
+//! through this interface and never name one.
+//!
+//! - [`spheres`]: QSplat's bounding-sphere traversal (splats).
+//! - [`cubes`]: the color-cube octree's `Render(cell)` (cube faces and
+//!   leaf triangles).
+//! - [`wanted`]: the pages a traversal asks for and the pages it read.
+//!
+//! A new kind is a new module with a [`Registered`] entry in [`KINDS`].
+
+pub mod cubes;
+pub mod spheres;
+pub mod wanted;
+
+use farfield_protocol::camera::Camera;
+use farfield_protocol::file::HierarchyKind;
+use farfield_protocol::hierarchy::Hierarchy;
+
+pub use wanted::WantedPage;
+
+/// What every kind is asked besides the pages and the camera.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TraversalOptions {
+    /// The refinement threshold in pixels: the largest splat for spheres,
+    /// `eps` (the projected cell edge drawn as a color-cube) for cubes.
+    pub threshold_px: f64,
+    /// Cubes: faces covered less than this (0..=255) are left out.
+    pub min_alpha: u8,
+    /// Fill [`Traversal::touched_pages`] (cache recency, overfetch).
+    pub record_pages: bool,
+}
+
+impl Default for TraversalOptions {
+    fn default() -> Self {
+        Self {
+            threshold_px: 1.0,
+            min_alpha: 1,
+            record_pages: false,
+        }
+    }
+}
+
+/// What the last traversal yields for the renderer.
+#[derive(Debug, Clone, Copy)]
+pub enum DrawList<'a> {
+    /// Splats, one per node of the cut.
+    Splats(&'a [spheres::Splat]),
+    /// Cube faces, and leaves whose triangles the renderer reads from the
+    /// hierarchy's resident pages.
+    Cubes(&'a cubes::CubeCut),
+}
+
+/// How much of the hierarchy one traversal looked at.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, serde::Serialize)]
+pub struct Counts {
+    /// Nodes whose record was read.
+    pub visited: u64,
+    /// Primitives to draw: splats, or cube faces plus leaf triangles.
+    pub drawn: u64,
+    pub frustum_culled: u64,
+    pub backface_culled: u64,
+}
+
+/// One hierarchy kind's traversal, holding its last cut (buffers are
+/// reused from frame to frame).
+pub trait Traversal: std::fmt::Debug {
+    /// The kind's entry in [`KINDS`].
+    fn registered(&self) -> &'static Registered;
+    /// Walks the resident part of `h` for `camera`, replacing the last cut.
+    fn traverse(&mut self, h: &Hierarchy, camera: &Camera, options: &TraversalOptions);
+    /// What to draw.
+    fn draw_list(&self) -> DrawList<'_>;
+    /// Pages the cut would descend into, most urgent first.
+    fn wanted(&self) -> &[WantedPage];
+    /// Pages the cut read, ascending (with `record_pages`).
+    fn touched_pages(&self) -> &[u32];
+    fn counts(&self) -> Counts;
+}
+
+/// A kind as the rest of the client knows it: its names and a constructor.
+#[derive(Debug)]
+pub struct Registered {
+    /// The name in tables, plots and `--mode` (`spheres`, `cubes`).
+    pub name: &'static str,
+    /// The files it walks.
+    pub hierarchy: HierarchyKind,
+    /// The settings a bench may sweep, the default first: the threshold's
+    /// name for this kind, then the style setting it reads.
+    pub params: &'static [&'static str],
+    /// The threshold of the kind's finest image, a reference for its
+    /// coarser ones (1 px splats; eps 0, geometry everywhere).
+    pub reference_threshold_px: f64,
+    /// That reference in words, for tables.
+    pub reference: &'static str,
+    pub make: fn() -> Box<dyn Traversal>,
+}
+
+/// Every kind this client can draw.
+pub const KINDS: &[Registered] = &[spheres::REGISTERED, cubes::REGISTERED];
+
+/// The traversal for a file of `kind`.
+pub fn for_hierarchy(kind: HierarchyKind) -> Box<dyn Traversal> {
+    // Every hierarchy kind has a registered traversal (a test checks).
+    let registered = KINDS
+        .iter()
+        .find(|k| k.hierarchy == kind)
+        .unwrap_or(&KINDS[0]);
+    (registered.make)()
+}
+
+/// The kind named `name` (`--mode`), if any.
+pub fn named(name: &str) -> Option<&'static Registered> {
+    KINDS.iter().find(|k| k.name == name)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_hierarchy_kind_has_one_registered_traversal() {
+        for kind in [HierarchyKind::Spheres, HierarchyKind::Cubes] {
+            let n = KINDS.iter().filter(|k| k.hierarchy == kind).count();
+            assert_eq!(n, 1, "{kind:?}");
+            assert_eq!(for_hierarchy(kind).registered().hierarchy, kind);
+        }
+        for k in KINDS {
+            assert_eq!(named(k.name).map(|r| r.hierarchy), Some(k.hierarchy));
+        }
+    }
+}

@@ -1,0 +1,252 @@
+//! The frame loop: draw what is resident, ask for what would refine it.
+//!
+//! It is QSplat's (2.1) with the memory server in front. [`draw_frame`] is
+//! one frame of any hierarchy kind: traverse (through the
+//! [`farfield_traverse::Traversal`] the scene's header names), mark the
+//! pages used, ask for the missing ones, draw. [`Settle`] is the resting
+//! camera: keep halving the projected-size threshold until it reaches the
+//! final one, then wait for pages until the cut is complete. The moving
+//! camera, with frame-time feedback, is [`crate::flythrough`].
+
+use std::time::Duration;
+
+use anyhow::bail;
+use farfield_protocol::camera::Camera;
+use farfield_protocol::file::{FileHeader, HierarchyKind};
+use farfield_render::{Renderer, SplatStyle};
+use farfield_traverse::{Counts, DrawList, Traversal, TraversalOptions, WantedPage};
+use serde::Serialize;
+use web_time::Instant;
+
+use crate::viewer::Viewer;
+
+/// When a render stops.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Until {
+    /// Every page the final cut needs is resident and drawn at the final threshold.
+    Refined,
+    Frames(u64),
+    Millis(f64),
+}
+
+/// Starting threshold of the progressive refinement, in multiples of the final one.
+const COARSE_FACTOR: f64 = 16.0;
+
+/// Where one frame's time went.
+#[derive(Debug, Clone, Copy, Default, Serialize)]
+pub struct FrameTimes {
+    pub traverse_ms: f64,
+    pub upload_ms: f64,
+    pub draw_ms: f64,
+}
+
+/// The last traversal, of whichever kind the scene is: made from the
+/// registry ([`farfield_traverse::for_hierarchy`]) on the first frame and
+/// reused (with its buffers) after.
+#[derive(Debug, Default)]
+pub struct LastCut {
+    traversal: Option<Box<dyn Traversal>>,
+}
+
+impl LastCut {
+    /// The traversal for `kind`, made (or replaced) when needed.
+    fn traversal_for(&mut self, kind: HierarchyKind) -> &mut dyn Traversal {
+        let traversal = match self.traversal.take() {
+            Some(t) if t.registered().hierarchy == kind => t,
+            _ => farfield_traverse::for_hierarchy(kind),
+        };
+        self.traversal.insert(traversal).as_mut()
+    }
+
+    /// What the last traversal drew; `None` before the first frame.
+    pub fn draw_list(&self) -> Option<DrawList<'_>> {
+        self.traversal.as_ref().map(|t| t.draw_list())
+    }
+
+    /// Pages the last traversal would have descended into, most urgent first.
+    pub fn wanted(&self) -> &[WantedPage] {
+        self.traversal.as_ref().map_or(&[], |t| t.wanted())
+    }
+
+    pub fn touched_pages(&self) -> &[u32] {
+        self.traversal.as_ref().map_or(&[], |t| t.touched_pages())
+    }
+
+    pub fn counts(&self) -> Counts {
+        self.traversal
+            .as_ref()
+            .map_or_else(Counts::default, |t| t.counts())
+    }
+
+    /// Splats, or cube faces plus leaf triangles.
+    pub fn drawn(&self) -> usize {
+        self.counts().drawn as usize
+    }
+
+    pub fn visited(&self) -> u64 {
+        self.counts().visited
+    }
+}
+
+/// One frame: traverse what is resident, mark what was used, ask for what
+/// is missing, draw. The image lands in `rgba`. `threshold` is the kind's
+/// threshold in pixels (the splat size for spheres, eps for cubes).
+pub fn draw_frame(
+    viewer: &mut Viewer,
+    renderer: &mut Renderer,
+    camera: &Camera,
+    threshold: f64,
+    style: &SplatStyle,
+    cut: &mut LastCut,
+    rgba: &mut Vec<u8>,
+) -> anyhow::Result<FrameTimes> {
+    let Some(h) = viewer.hierarchy() else {
+        bail!("no scene header yet");
+    };
+    let options = TraversalOptions {
+        threshold_px: threshold,
+        min_alpha: style.coverage.min_alpha(),
+        record_pages: true,
+    };
+    let traversal = cut.traversal_for(h.header.kind);
+    let t = Instant::now();
+    traversal.traverse(h, camera, &options);
+    let traverse_ms = t.elapsed().as_secs_f64() * 1e3;
+    let image = renderer.draw(h, camera, traversal.draw_list(), style)?;
+    viewer.touch(traversal.touched_pages());
+    viewer.request(traversal.wanted());
+    *rgba = image.rgba;
+    Ok(FrameTimes {
+        traverse_ms,
+        upload_ms: image.upload_ms,
+        draw_ms: image.draw_ms,
+    })
+}
+
+/// The resting-camera loop: draw, ask, halve the threshold down to the
+/// final one, then wait for pages until the cut is complete (or the job's
+/// end condition or deadline comes first).
+#[derive(Debug)]
+pub struct Settle {
+    pub(crate) final_threshold: f64,
+    pub threshold: f64,
+    until: Until,
+    started: Instant,
+    timeout: Duration,
+    pub keep_frames: bool,
+    pub cut: LastCut,
+    pub rgba: Vec<u8>,
+    pub frames: Vec<Vec<u8>>,
+    pub frame_count: u64,
+    pub time_to_first_image_ms: Option<f64>,
+    pub time_to_refined_ms: Option<f64>,
+    pub last: FrameTimes,
+    pub error: Option<String>,
+}
+
+impl Settle {
+    pub fn new(final_threshold: f64, until: Until, started: Instant, timeout: Duration) -> Self {
+        let final_threshold = final_threshold.max(0.0);
+        Self {
+            final_threshold,
+            threshold: (final_threshold * COARSE_FACTOR)
+                .max(1.0)
+                .max(final_threshold),
+            until,
+            started,
+            timeout,
+            keep_frames: false,
+            cut: LastCut::default(),
+            rgba: Vec::new(),
+            frames: Vec::new(),
+            frame_count: 0,
+            time_to_first_image_ms: None,
+            time_to_refined_ms: None,
+            last: FrameTimes::default(),
+            error: None,
+        }
+    }
+
+    /// Draws frames for the camera `camera_for(header)` until done.
+    pub fn run(
+        &mut self,
+        viewer: &mut Viewer,
+        renderer: &mut Renderer,
+        style: &SplatStyle,
+        camera_for: &dyn Fn(&FileHeader) -> Camera,
+    ) -> anyhow::Result<()> {
+        let mut announced_disconnect = false;
+        loop {
+            let elapsed = self.started.elapsed();
+            if elapsed > self.timeout {
+                self.error = Some(if viewer.header().is_none() {
+                    viewer.no_header_error(elapsed)
+                } else {
+                    let seconds = elapsed.as_secs_f64();
+                    viewer.with_last_error(format!("not refined after {seconds:.1} s"))
+                });
+                return Ok(());
+            }
+            viewer.pump(Duration::ZERO)?;
+            if !viewer.is_connected() && !announced_disconnect && self.frame_count > 0 {
+                let why = viewer.stats().last_error.clone().unwrap_or_default();
+                eprintln!("farfield: lost the server ({why}); keeping the image and reconnecting");
+                announced_disconnect = true;
+            }
+            announced_disconnect &= !viewer.is_connected();
+            let Some(header) = viewer.header().cloned() else {
+                viewer.pump(Duration::from_millis(50))?;
+                continue;
+            };
+            let camera = camera_for(&header);
+            self.last = draw_frame(
+                viewer,
+                renderer,
+                &camera,
+                self.threshold,
+                style,
+                &mut self.cut,
+                &mut self.rgba,
+            )?;
+            self.frame_count += 1;
+            if self.time_to_first_image_ms.is_none() {
+                self.time_to_first_image_ms = Some(self.started.elapsed().as_secs_f64() * 1e3);
+            }
+            if self.keep_frames {
+                self.frames.push(self.rgba.clone());
+            }
+            let missing = self
+                .cut
+                .wanted()
+                .iter()
+                .filter(|w| !viewer.gave_up(w.page))
+                .count();
+            let refined = missing == 0 && self.threshold <= self.final_threshold;
+            if refined && self.time_to_refined_ms.is_none() {
+                self.time_to_refined_ms = Some(self.started.elapsed().as_secs_f64() * 1e3);
+            }
+            let done = match self.until {
+                Until::Refined => refined,
+                Until::Frames(n) => self.frame_count >= n,
+                Until::Millis(ms) => self.started.elapsed().as_secs_f64() * 1e3 >= ms,
+            };
+            if done {
+                return Ok(());
+            }
+            if self.threshold > self.final_threshold {
+                // Halving never reaches 0 (`--eps 0`): go there from 1/32.
+                let next = self.threshold * 0.5;
+                self.threshold = if next < 1.0 / 32.0 {
+                    self.final_threshold
+                } else {
+                    next.max(self.final_threshold)
+                };
+            } else if !refined {
+                // Nothing to gain from redrawing before more pages arrive.
+                viewer.pump(Duration::from_millis(200))?;
+            } else {
+                std::thread::sleep(Duration::from_millis(5));
+            }
+        }
+    }
+}

@@ -1,0 +1,112 @@
+//! One camera, streamed or from a file, refined to the final threshold: the
+//! job behind `farfield render` (and the benchmarks' renders).
+//!
+//! The first frame is drawn as soon as the header and page 0 are in.
+
+use std::path::PathBuf;
+use std::time::Duration;
+
+use anyhow::{Context, bail};
+use farfield_net::SessionOptions;
+use farfield_render::{Coverage, Kernel, Renderer, SplatStyle};
+use web_time::Instant;
+
+use crate::camera_spec::CameraSpec;
+use crate::frame_loop::{Settle, Until};
+use crate::report::RenderReport;
+use crate::viewer::Viewer;
+
+/// Where the scene comes from.
+#[derive(Debug, Clone)]
+pub enum Source {
+    File(PathBuf),
+    Server { url: String, scene: String },
+}
+
+/// Everything one render needs.
+#[derive(Debug, Clone)]
+pub struct RenderJob {
+    pub source: Source,
+    pub camera: CameraSpec,
+    pub width: u32,
+    pub height: u32,
+    pub out: Option<PathBuf>,
+    pub until: Until,
+    /// Spheres: the splat size threshold; cubes: eps, the projected cell
+    /// edge under which a cell is drawn as its color-cube (pixels).
+    pub threshold_px: f64,
+    pub kernel: Kernel,
+    /// Cubes: how face coverage is used.
+    pub coverage: Coverage,
+    pub session: SessionOptions,
+    pub cache_bytes: usize,
+    /// Give up (keeping the image so far) after this long.
+    pub timeout: Duration,
+}
+
+/// A finished render: the report and the last image.
+#[derive(Debug)]
+pub struct Rendered {
+    pub report: RenderReport,
+    pub rgba: Vec<u8>,
+    /// Every frame's pixels, when asked for (tests of progressive refinement).
+    pub frames: Vec<Vec<u8>>,
+}
+
+/// Runs a render job with an already initialised renderer (so its start-up
+/// is not counted in time to first image).
+pub fn run(
+    job: &RenderJob,
+    renderer: &mut Renderer,
+    keep_frames: bool,
+) -> anyhow::Result<Rendered> {
+    renderer.resize(job.width, job.height);
+    let started = Instant::now();
+    let mut viewer = open_viewer(job)?;
+    let style = SplatStyle {
+        kernel: job.kernel,
+        coverage: job.coverage,
+        ..SplatStyle::default()
+    };
+    let camera = job.camera;
+    let (width, height) = (job.width, job.height);
+    let mut settle = Settle::new(job.threshold_px, job.until, started, job.timeout);
+    settle.keep_frames = keep_frames;
+    settle.run(&mut viewer, renderer, &style, &|h| {
+        camera.resolve(h, width, height)
+    })?;
+    let mut report = settle.report(&viewer, renderer);
+    report.out = job.out.clone();
+    if let Some(out) = &job.out {
+        if settle.rgba.is_empty() {
+            bail!(
+                "no image was drawn: {}",
+                report
+                    .last_error
+                    .clone()
+                    .unwrap_or_else(|| "no scene header arrived".into())
+            );
+        }
+        farfield_image::write_png(out, width, height, &settle.rgba)
+            .with_context(|| format!("writing {}", out.display()))?;
+    }
+    Ok(Rendered {
+        report,
+        rgba: std::mem::take(&mut settle.rgba),
+        frames: std::mem::take(&mut settle.frames),
+    })
+}
+
+/// The viewer a job's source names: a file read whole, or a session with
+/// a memory server.
+pub fn open_viewer(job: &RenderJob) -> anyhow::Result<Viewer> {
+    match &job.source {
+        Source::File(path) => Viewer::open_file(path),
+        #[cfg(not(target_arch = "wasm32"))]
+        Source::Server { url, scene } => {
+            Viewer::open_remote(url, scene, job.session, job.cache_bytes)
+        }
+        #[cfg(target_arch = "wasm32")]
+        Source::Server { .. } => bail!("a browser opens a session through its own transport"),
+    }
+}

@@ -1,0 +1,235 @@
+//! [`Viewer`]: the client's resident state for one scene, from a file or a
+//! memory server.
+//!
+//! It owns the [`Hierarchy`] of resident pages and a byte-bounded LRU over
+//! them; what was asked for, acknowledged, rejected or given up is the
+//! session's ([`Session`]). Each frame the frame loop calls
+//! [`Viewer::pump`] (take what arrived), traverses, then
+//! [`Viewer::request`] with the traversal's wanted pages. A page that
+//! fails verification is reported to the session (which asks again, at
+//! most [`farfield_net::MAX_PAGE_FAILURES`] times), never drawn. Given-up
+//! pages, with why ([`Viewer::failed_pages`]), are no longer asked for:
+//! their parts of the tree are drawn from coarser pages.
+
+use std::path::Path;
+use std::time::Duration;
+
+use anyhow::Context;
+use farfield_net::{
+    FailedPage, NetStats, Session, SessionEvent, SessionOptions, Transport, stream_url,
+};
+use farfield_protocol::file::FileHeader;
+use farfield_protocol::hierarchy::Hierarchy;
+use farfield_traverse::WantedPage;
+use lru::LruCache;
+
+/// Reads the paged file at `path` whole, every page resident and verified
+/// (the `--file` mode).
+pub fn load_file(path: &Path) -> anyhow::Result<Hierarchy> {
+    let bytes = std::fs::read(path).with_context(|| format!("reading {}", path.display()))?;
+    farfield_protocol::paged_file::read_image(&bytes).with_context(|| format!("{}", path.display()))
+}
+
+/// The resident state of one scene.
+#[derive(Debug)]
+pub struct Viewer {
+    session: Option<Session<Box<dyn Transport>>>,
+    hierarchy: Option<Hierarchy>,
+    recency: LruCache<u32, ()>,
+    cache_bytes: usize,
+    /// A file's viewer has no session; its counters stay zero.
+    no_stats: NetStats,
+}
+
+impl Viewer {
+    /// Every page of a local file resident, no server involved.
+    pub fn open_file(path: &Path) -> anyhow::Result<Self> {
+        Ok(Self::resident(load_file(path)?))
+    }
+
+    /// A viewer of a hierarchy already in memory (every page it holds).
+    pub fn resident(hierarchy: Hierarchy) -> Self {
+        let mut viewer = Self::with_session(None, usize::MAX);
+        viewer.hierarchy = Some(hierarchy);
+        viewer
+    }
+
+    /// Starts a session with a memory server over the native websocket;
+    /// pages arrive through [`pump`](Self::pump).
+    #[cfg(not(target_arch = "wasm32"))]
+    pub fn open_remote(
+        server: &str,
+        scene: &str,
+        options: SessionOptions,
+        cache_bytes: usize,
+    ) -> anyhow::Result<Self> {
+        let transport = farfield_net::websocket::WebSocketTransport::new()
+            .context("starting the network thread")?;
+        Ok(Self::over(
+            Box::new(transport),
+            server,
+            scene,
+            options,
+            cache_bytes,
+        ))
+    }
+
+    /// Starts a session with `scene` on `server` over `transport` (a
+    /// browser's websocket, or an in-memory one in tests).
+    pub fn over(
+        transport: Box<dyn Transport>,
+        server: &str,
+        scene: &str,
+        options: SessionOptions,
+        cache_bytes: usize,
+    ) -> Self {
+        let session = Session::open(transport, stream_url(server, scene), options);
+        Self::with_session(Some(session), cache_bytes)
+    }
+
+    fn with_session(session: Option<Session<Box<dyn Transport>>>, cache_bytes: usize) -> Self {
+        Self {
+            session,
+            hierarchy: None,
+            recency: LruCache::unbounded(),
+            cache_bytes,
+            no_stats: NetStats::default(),
+        }
+    }
+
+    pub fn hierarchy(&self) -> Option<&Hierarchy> {
+        self.hierarchy.as_ref()
+    }
+
+    pub fn header(&self) -> Option<&FileHeader> {
+        self.hierarchy.as_ref().map(|h| &h.header)
+    }
+
+    /// Whether the pages come from a server (and so can be over-fetched).
+    pub fn is_streamed(&self) -> bool {
+        self.session.is_some()
+    }
+
+    /// The session's counters (all zero for a file).
+    pub fn stats(&self) -> &NetStats {
+        self.session.as_ref().map_or(&self.no_stats, |s| &s.stats)
+    }
+
+    /// `what` went wrong, followed by the last connection or server error
+    /// when there was one: a client that gives up waiting should say
+    /// "connection refused", not only that it timed out.
+    pub fn with_last_error(&self, what: String) -> String {
+        match &self.stats().last_error {
+            Some(e) => format!("{what} (last error: {e})"),
+            None => what,
+        }
+    }
+
+    /// Why a caller gave up waiting `waited` for the scene's header, in
+    /// the words every command uses, with the last error.
+    pub fn no_header_error(&self, waited: Duration) -> String {
+        self.with_last_error(format!(
+            "no scene header after {:.1} s",
+            waited.as_secs_f64()
+        ))
+    }
+
+    /// Pages asked for and not yet arrived.
+    pub fn outstanding(&self) -> usize {
+        self.session.as_ref().map_or(0, Session::outstanding)
+    }
+
+    /// Whether a session is up and has the scene (always, for a file).
+    pub fn is_connected(&self) -> bool {
+        self.session.as_ref().is_none_or(Session::is_connected)
+    }
+
+    /// Takes every event that has arrived, waiting up to `wait` for the
+    /// first one when none is queued. Returns the pages made resident.
+    /// A session that ended (refused, never reached, a fatal server error)
+    /// is returned as an error.
+    pub fn pump(&mut self, wait: Duration) -> anyhow::Result<usize> {
+        let Self {
+            session: Some(session),
+            hierarchy,
+            recency,
+            cache_bytes,
+            ..
+        } = self
+        else {
+            return Ok(0);
+        };
+        let mut inserted = 0;
+        for event in session.pump(wait)? {
+            match event {
+                SessionEvent::Header(header) => {
+                    *hierarchy =
+                        Some(Hierarchy::new(header).context("scene header from the server")?);
+                }
+                SessionEvent::Page { index, bytes } => {
+                    let Some(h) = hierarchy.as_mut() else {
+                        continue;
+                    };
+                    if h.is_resident(index as usize) {
+                        continue;
+                    }
+                    match h.insert_page(index, &bytes) {
+                        Ok(()) => {
+                            recency.put(index, ());
+                            inserted += 1;
+                            evict(h, recency, *cache_bytes);
+                        }
+                        Err(e) => session.page_rejected(index, &e),
+                    }
+                }
+            }
+        }
+        Ok(inserted)
+    }
+
+    /// Sends new wishes and cancels stale ones. `wanted` is the traversal's
+    /// list (most urgent first).
+    pub fn request(&mut self, wanted: &[WantedPage]) {
+        if let Some(s) = self.session.as_mut() {
+            s.request(wanted);
+        }
+    }
+
+    /// Marks pages as used this frame (most recent in the LRU).
+    pub fn touch(&mut self, pages: &[u32]) {
+        for &p in pages {
+            self.recency.get(&p);
+        }
+    }
+
+    /// Pages given up on (repeated checksum failures, or the server cannot
+    /// send them), by page index, with the last reason of each.
+    pub fn failed_pages(&self) -> Vec<FailedPage> {
+        self.session
+            .as_ref()
+            .map_or_else(Vec::new, Session::failed_pages)
+    }
+
+    /// Whether `page` was given up on: it is not asked for again.
+    pub fn gave_up(&self, page: u32) -> bool {
+        self.session.as_ref().is_some_and(|s| s.gave_up(page))
+    }
+}
+
+/// Drops least recently used pages while over the byte budget; page 0
+/// (the coarse model) always stays.
+fn evict(h: &mut Hierarchy, recency: &mut LruCache<u32, ()>, cache_bytes: usize) {
+    while h.resident_bytes() > cache_bytes {
+        let Some((page, ())) = recency.pop_lru() else {
+            break;
+        };
+        if page == 0 {
+            recency.put(0, ());
+            if recency.len() == 1 {
+                break;
+            }
+            continue;
+        }
+        h.evict_page(page);
+    }
+}
