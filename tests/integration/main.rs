@@ -7,6 +7,7 @@ mod bench;
 mod cubes;
 mod extremes;
 mod holes;
+mod kinds;
 mod layout;
 mod progress;
 mod real_data;

@@ -1,0 +1,169 @@
+//! Every registered traversal kind through one harness: the same scenes
+//! (whole and streamed in part), the same cameras, the same checks. A kind
+//! added to `farfield_traverse::KINDS` is tested here with no change but a
+//! builder for a new hierarchy kind or a new draw list (the matches below
+//! are exhaustive, so the compiler asks for them).
+
+use farfield_builder::cubes::{CubeOptions, build_cubes};
+use farfield_builder::import::{Params, load_input};
+use farfield_builder::{BuildOptions, PagedFile, build_spheres};
+use farfield_protocol::camera::{Camera, Containment, View};
+use farfield_protocol::file::HierarchyKind;
+use farfield_protocol::hierarchy::Hierarchy;
+use farfield_traverse::{DrawList, KINDS, TraversalOptions};
+use glam::DVec3;
+
+/// A small tree scene as a file of `kind`, with pages small enough that a
+/// view needs several.
+fn file_of(kind: HierarchyKind) -> PagedFile {
+    let mut params = Params::default();
+    params.set("triangles", 4000);
+    let scene = load_input("gen:tree", &params).expect("gen:tree");
+    match kind {
+        HierarchyKind::Spheres => {
+            let options = BuildOptions {
+                page_bytes: 2048,
+                ..BuildOptions::default()
+            };
+            build_spheres(scene, &options).expect("spheres").0
+        }
+        HierarchyKind::Cubes => {
+            let options = CubeOptions {
+                page_bytes: 4096,
+                ..CubeOptions::default()
+            };
+            build_cubes(scene, &options).expect("cubes").0
+        }
+    }
+}
+
+/// The file with only the pages `keep` accepts resident.
+fn resident_where(file: &PagedFile, keep: impl Fn(usize) -> bool) -> Hierarchy {
+    let mut h = Hierarchy::new(file.header.clone()).expect("header");
+    for (i, page) in file.pages.iter().enumerate().filter(|&(i, _)| keep(i)) {
+        h.insert_page(i as u32, page).expect("page");
+    }
+    h
+}
+
+/// Orbits near and far, one looking past the scene's edge, one from inside.
+fn cameras(h: &Hierarchy) -> Vec<Camera> {
+    let (c, r) = (h.header.root_center, h.header.root_radius);
+    let mut cameras: Vec<Camera> = [(30.0, 10.0, 3.0), (200.0, 40.0, 1.2), (75.0, -20.0, 8.0)]
+        .iter()
+        .map(|&(az, el, d)| Camera::orbit(c, r, az, el, d, 200, 150))
+        .collect();
+    // Looking from the scene's edge towards its side, so part of it is behind.
+    cameras.push(Camera {
+        eye: c + DVec3::new(r * 0.9, 0.0, 0.0),
+        target: c + DVec3::new(r * 0.9, r, 0.0),
+        up: DVec3::Z,
+        fov_y_deg: 50.0,
+        width: 200,
+        height: 150,
+    });
+    cameras
+}
+
+/// Bounding spheres of everything a draw list draws.
+fn drawn_spheres(list: DrawList<'_>) -> Vec<(DVec3, f64)> {
+    let cube = |min: DVec3, edge: f64| (min + DVec3::splat(edge * 0.5), edge * 0.5 * 3f64.sqrt());
+    match list {
+        DrawList::Splats(splats) => splats.iter().map(|s| (s.center, s.radius)).collect(),
+        DrawList::Cubes(cut) => cut
+            .faces
+            .iter()
+            .map(|f| cube(f.min, f.edge))
+            .chain(cut.leaves.iter().map(|l| cube(l.min, l.edge)))
+            .collect(),
+    }
+}
+
+/// A frustum a little wider than any traversal's (near plane at a
+/// billionth of the scene), so rounding at the planes cannot fail a test.
+fn test_view(camera: &Camera, h: &Hierarchy) -> View {
+    camera.view(h.header.root_radius * 1e-9)
+}
+
+#[test]
+fn every_kind_draws_nothing_outside_the_frustum_and_wants_only_pages_the_file_has() {
+    assert!(!KINDS.is_empty());
+    for kind in KINDS {
+        let file = file_of(kind.hierarchy);
+        let pages = file.pages.len();
+        assert!(
+            pages > 3,
+            "{}: {pages} pages is too few to stream",
+            kind.name
+        );
+        let whole = resident_where(&file, |_| true);
+        let partial = resident_where(&file, |i| i == 0 || i % 3 == 1);
+        let page_zero = resident_where(&file, |i| i == 0);
+        let nothing = resident_where(&file, |_| false);
+        let mut traversal = (kind.make)();
+        assert_eq!(traversal.registered().name, kind.name);
+        let mut drew_something = false;
+        for (what, h) in [
+            ("whole", &whole),
+            ("partial", &partial),
+            ("page 0", &page_zero),
+            ("nothing", &nothing),
+        ] {
+            for (k, camera) in cameras(h).iter().enumerate() {
+                for threshold_px in [kind.reference_threshold_px, 1.0, 8.0] {
+                    let options = TraversalOptions {
+                        threshold_px,
+                        record_pages: true,
+                        ..TraversalOptions::default()
+                    };
+                    traversal.traverse(h, camera, &options);
+                    let at = format!(
+                        "{}, {what}, camera {k}, threshold {threshold_px}",
+                        kind.name
+                    );
+                    let view = test_view(camera, h);
+                    let drawn = drawn_spheres(traversal.draw_list());
+                    for &(center, radius) in &drawn {
+                        assert_ne!(
+                            view.classify(center, radius),
+                            Containment::Outside,
+                            "{at}: drew a primitive outside the frustum at {center} (radius {radius})"
+                        );
+                    }
+                    drew_something |= !drawn.is_empty();
+                    for w in traversal.wanted() {
+                        assert!(
+                            (w.page as usize) < pages,
+                            "{at}: wants page {} of a {pages}-page file",
+                            w.page
+                        );
+                        assert!(
+                            !h.is_resident(w.page as usize),
+                            "{at}: wants page {}, which is resident",
+                            w.page
+                        );
+                        assert!(w.priority > 0.0, "{at}: priority {}", w.priority);
+                    }
+                    for &p in traversal.touched_pages() {
+                        assert!(
+                            h.is_resident(p as usize),
+                            "{at}: touched page {p}, not resident"
+                        );
+                    }
+                    if what == "nothing" {
+                        let wanted: Vec<u32> = traversal.wanted().iter().map(|w| w.page).collect();
+                        assert_eq!(wanted, vec![0], "{at}: with nothing resident, page 0 first");
+                        assert!(drawn.is_empty(), "{at}: drew without pages");
+                    }
+                    if what == "whole" {
+                        assert!(
+                            traversal.wanted().is_empty(),
+                            "{at}: wants pages of a whole file"
+                        );
+                    }
+                }
+            }
+        }
+        assert!(drew_something, "{}: never drew anything", kind.name);
+    }
+}
