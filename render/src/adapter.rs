@@ -1,4 +1,5 @@
-//! Finding a wgpu adapter and device for headless rendering.
+//! Finding a wgpu adapter and device: for headless rendering, or for a
+//! window's or canvas's surface.
 //!
 //! Prefers Vulkan (a real GPU, or Mesa's lavapipe on CPU-only machines) and
 //! falls back to GL (llvmpipe). `FARFIELD_BACKEND=vulkan|gl` forces one.
@@ -54,6 +55,7 @@ pub unsafe fn quiet_device_select_when_headless() {
 /// An opened device with its queue and what it runs on.
 #[derive(Debug)]
 pub(crate) struct Gpu {
+    pub adapter: wgpu::Adapter,
     pub device: wgpu::Device,
     pub queue: wgpu::Queue,
     pub info: wgpu::AdapterInfo,
@@ -92,22 +94,9 @@ pub(crate) fn open() -> anyhow::Result<Gpu> {
                 continue;
             }
         };
-        let info = adapter.get_info();
-        let device = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
-            label: Some("farfield"),
-            required_limits: adapter.limits(),
-            memory_hints: wgpu::MemoryHints::Performance,
-            ..Default::default()
-        }));
-        match device {
-            Ok((device, queue)) => {
-                return Ok(Gpu {
-                    device,
-                    queue,
-                    info,
-                });
-            }
-            Err(e) => tried.push(format!("{}: cannot open a device: {e}", describe(&info))),
+        match pollster::block_on(open_device(adapter)) {
+            Ok(gpu) => return Ok(gpu),
+            Err(e) => tried.push(e),
         }
     }
     bail!(
@@ -116,6 +105,46 @@ pub(crate) fn open() -> anyhow::Result<Gpu> {
          libgl1-mesa-dri for llvmpipe GL); {BACKEND_ENV}=vulkan|gl picks a backend",
         tried.join("; ")
     )
+}
+
+/// Opens `adapter`'s device with every limit it has; the error names it.
+async fn open_device(adapter: wgpu::Adapter) -> Result<Gpu, String> {
+    let info = adapter.get_info();
+    let device = adapter
+        .request_device(&wgpu::DeviceDescriptor {
+            label: Some("farfield"),
+            required_limits: adapter.limits(),
+            memory_hints: wgpu::MemoryHints::Performance,
+            ..Default::default()
+        })
+        .await;
+    match device {
+        Ok((device, queue)) => Ok(Gpu {
+            adapter,
+            device,
+            queue,
+            info,
+        }),
+        Err(e) => Err(format!("{}: cannot open a device: {e}", describe(&info))),
+    }
+}
+
+/// An adapter and device of `instance` that can draw into `surface`.
+pub(crate) async fn open_for_surface(
+    instance: &wgpu::Instance,
+    surface: &wgpu::Surface<'_>,
+) -> anyhow::Result<Gpu> {
+    let options = wgpu::RequestAdapterOptions {
+        power_preference: wgpu::PowerPreference::HighPerformance,
+        force_fallback_adapter: false,
+        compatible_surface: Some(surface),
+        apply_limit_buckets: false,
+    };
+    let adapter = instance
+        .request_adapter(&options)
+        .await
+        .map_err(|e| anyhow::anyhow!("no GPU adapter can draw to this surface: {e}"))?;
+    open_device(adapter).await.map_err(anyhow::Error::msg)
 }
 
 /// Describes an adapter as "name / backend (driver info)".

@@ -111,7 +111,7 @@ pub(crate) struct GeometryPipelines {
 }
 
 impl GeometryPipelines {
-    pub(crate) fn new(device: &wgpu::Device) -> anyhow::Result<Self> {
+    pub(crate) fn new(device: &wgpu::Device, format: wgpu::TextureFormat) -> anyhow::Result<Self> {
         let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
         let shader = device.create_shader_module(wgpu::include_wgsl!("geometry.wgsl"));
         let UniformBinding {
@@ -153,7 +153,7 @@ impl GeometryPipelines {
                     module: &shader,
                     entry_point: Some(fs),
                     compilation_options: Default::default(),
-                    targets: &[color_target(blend)],
+                    targets: &[color_target(format, blend)],
                 }),
                 multiview_mask: None,
                 cache: None,
@@ -318,7 +318,7 @@ impl Renderer {
             light: [light.x, light.y, light.z, 0.0],
             params: [shading::AMBIENT, shading::DIFFUSE, 0.0, 0.0],
         };
-        let (gpu, pipes, target) = self.geometry_parts()?;
+        let (gpu, pipes, output) = self.geometry_parts()?;
         let scope = gpu.device.push_error_scope(wgpu::ErrorFilter::Validation);
         gpu.queue
             .write_buffer(&pipes.uniform, 0, bytemuck::bytes_of(&uniform));
@@ -348,6 +348,7 @@ impl Renderer {
         let upload_ms = started.elapsed().as_secs_f64() * 1e3;
 
         let started = Instant::now();
+        let frame = output.begin(&gpu.device)?;
         let [r, g, b] = background.map(|c| f64::from(c) / 255.0);
         let mut encoder = gpu
             .device
@@ -358,7 +359,7 @@ impl Renderer {
             let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
                 label: Some("farfield geometry"),
                 color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                    view: &target.color_view,
+                    view: &frame.color,
                     depth_slice: None,
                     resolve_target: None,
                     ops: wgpu::Operations {
@@ -367,7 +368,7 @@ impl Renderer {
                     },
                 })],
                 depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
-                    view: &target.depth_view,
+                    view: &frame.depth,
                     depth_ops: Some(wgpu::Operations {
                         load: wgpu::LoadOp::Clear(0.0),
                         store: wgpu::StoreOp::Discard,
@@ -393,9 +394,7 @@ impl Renderer {
                 pass.draw(0..4, 0..gpu_faces.len() as u32);
             }
         }
-        target.copy_out(&mut encoder);
-        gpu.queue.submit([encoder.finish()]);
-        let rgba = target.read(&gpu.device)?;
+        let rgba = output.finish(gpu, frame, encoder)?;
         let draw_ms = started.elapsed().as_secs_f64() * 1e3;
         if let Some(e) = pollster::block_on(scope.pop()) {
             bail!(

@@ -7,7 +7,9 @@
 //! made camera-relative in f64 before they become f32, so scenes far from
 //! the origin render as precisely as scenes at it. The frame is offscreen
 //! and read back, which is what tests, evaluation and the `render` command
-//! need; it runs on a real GPU or on Mesa's CPU drivers (lavapipe, llvmpipe).
+//! need, or a window's or canvas's surface, presented and never read back
+//! ([`Renderer::for_surface`]); it runs on a real GPU or on Mesa's CPU
+//! drivers (lavapipe, llvmpipe).
 //!
 //! - [`Renderer`]: the device, pipeline, instance buffers and frame.
 //! - [`SplatStyle`], [`Kernel`]: how splats look; [`RenderOutput`]: an image
@@ -22,6 +24,7 @@ mod adapter;
 mod draw_list;
 mod geometry;
 mod instances;
+mod output;
 mod renderer;
 mod target;
 #[cfg(test)]
@@ -80,14 +83,16 @@ impl Default for SplatStyle {
 /// One rendered frame.
 #[derive(Debug, Clone, PartialEq)]
 pub struct RenderOutput {
-    /// Tightly packed RGBA8 rows, top row first (`width * height * 4` bytes).
+    /// Tightly packed RGBA8 rows, top row first (`width * height * 4` bytes);
+    /// empty when the renderer draws to a surface, which is never read back.
     pub rgba: Vec<u8>,
     pub width: u32,
     pub height: u32,
     /// Packing the splats and queueing the buffer writes, in milliseconds
     /// (a backend may do the copy itself at submit, inside `draw_ms`).
     pub upload_ms: f64,
-    /// From submitting the draw until the image is back in memory.
+    /// From submitting the draw until the image is back in memory (or, on a
+    /// surface, handed to the compositor).
     pub draw_ms: f64,
 }
 

@@ -3,7 +3,7 @@
 
 use web_time::Instant;
 
-use anyhow::{bail, ensure};
+use anyhow::{Context, bail, ensure};
 use farfield_protocol::camera::{Camera, View};
 use farfield_traverse::spheres::Splat;
 use glam::{DVec3, Vec3};
@@ -11,6 +11,7 @@ use glam::{DVec3, Vec3};
 use super::adapter::{self, Gpu};
 use super::geometry::GeometryPipelines;
 use super::instances::{self, GpuSplat, STRIDE};
+use super::output::{Output, SurfaceOutput};
 use super::target::{Target, color_target, depth_test};
 use super::uniform::UniformBinding;
 use super::{Kernel, RenderOutput, SplatStyle};
@@ -33,14 +34,15 @@ struct FrameUniform {
     flags: [f32; 4],
 }
 
-/// Draws splats offscreen and reads the image back.
+/// Draws splats, triangles and cube faces into its [`Output`]: offscreen
+/// (read back after every frame) or a surface (presented, not read back).
 #[derive(Debug)]
 pub struct Renderer {
     gpu: Gpu,
     pipeline: wgpu::RenderPipeline,
     uniform: wgpu::Buffer,
     bind_group: wgpu::BindGroup,
-    target: Target,
+    output: Output,
     /// Instance buffers, one per chunk, each with its capacity in splats.
     chunks: Vec<(wgpu::Buffer, u64)>,
     /// Splats per chunk: the most one buffer may hold.
@@ -60,13 +62,44 @@ impl Renderer {
             "frame size {width}x{height} is empty"
         );
         let gpu = adapter::open()?;
+        check_size(&gpu.device, width, height)?;
+        let output = Output::Offscreen(Target::new(&gpu.device, width, height));
+        Self::with_output(gpu, output)
+    }
+
+    /// A renderer that draws into `surface` (a window's or a canvas's),
+    /// which `instance` made, at `width` x `height`: every frame is
+    /// presented and none is read back, so [`RenderOutput::rgba`] is empty.
+    /// The surface's format is its first non-sRGB one when it has one, so
+    /// colors are written as the offscreen frame writes them.
+    pub async fn for_surface(
+        instance: &wgpu::Instance,
+        surface: wgpu::Surface<'static>,
+        width: u32,
+        height: u32,
+    ) -> anyhow::Result<Self> {
+        let gpu = adapter::open_for_surface(instance, &surface).await?;
+        check_size(&gpu.device, width, height)?;
+        let caps = surface.get_capabilities(&gpu.adapter);
+        let format = caps
+            .formats
+            .iter()
+            .copied()
+            .find(|f| !f.is_srgb())
+            .or_else(|| caps.formats.first().copied())
+            .context("the surface supports no format on this adapter")?;
+        let mut config = surface
+            .get_default_config(&gpu.adapter, width, height)
+            .context("this adapter cannot draw to the surface")?;
+        config.format = format;
+        let output = Output::Surface(SurfaceOutput::new(&gpu.device, surface, config));
+        Self::with_output(gpu, output)
+    }
+
+    /// The pipelines for `output`'s format.
+    fn with_output(gpu: Gpu, output: Output) -> anyhow::Result<Self> {
         let device = &gpu.device;
         let limits = device.limits();
-        ensure!(
-            width <= limits.max_texture_dimension_2d && height <= limits.max_texture_dimension_2d,
-            "frame size {width}x{height} exceeds this adapter's {} pixels",
-            limits.max_texture_dimension_2d
-        );
         let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
         let shader = device.create_shader_module(wgpu::include_wgsl!("splat.wgsl"));
         let UniformBinding {
@@ -104,7 +137,7 @@ impl Renderer {
                 module: &shader,
                 entry_point: Some("fs_main"),
                 compilation_options: Default::default(),
-                targets: &[color_target(None)],
+                targets: &[color_target(output.format(), None)],
             }),
             multiview_mask: None,
             cache: None,
@@ -112,13 +145,12 @@ impl Renderer {
         if let Some(e) = pollster::block_on(scope.pop()) {
             bail!("creating the splat pipeline: {e}");
         }
-        let target = Target::new(device, width, height);
         let chunk_splats = (limits.max_buffer_size.min(MAX_CHUNK_BYTES) / STRIDE).max(1);
         Ok(Self {
             pipeline,
             uniform,
             bind_group,
-            target,
+            output,
             chunks: Vec::new(),
             chunk_splats,
             scratch: Vec::new(),
@@ -130,12 +162,13 @@ impl Renderer {
     /// The device, the geometry pipelines (made on first use) and the frame.
     pub(super) fn geometry_parts(
         &mut self,
-    ) -> anyhow::Result<(&Gpu, &mut GeometryPipelines, &Target)> {
+    ) -> anyhow::Result<(&Gpu, &mut GeometryPipelines, &Output)> {
         if self.geometry.is_none() {
-            self.geometry = Some(GeometryPipelines::new(&self.gpu.device)?);
+            let format = self.output.format();
+            self.geometry = Some(GeometryPipelines::new(&self.gpu.device, format)?);
         }
         match self.geometry.as_mut() {
-            Some(pipes) => Ok((&self.gpu, pipes, &self.target)),
+            Some(pipes) => Ok((&self.gpu, pipes, &self.output)),
             None => bail!("no geometry pipelines"),
         }
     }
@@ -147,7 +180,7 @@ impl Renderer {
 
     /// The frame size in pixels.
     pub fn size(&self) -> (u32, u32) {
-        (self.target.width, self.target.height)
+        self.output.size()
     }
 
     /// Changes the frame size, clamped to 1 pixel and to the adapter's
@@ -157,7 +190,7 @@ impl Renderer {
         let max = self.gpu.device.limits().max_texture_dimension_2d;
         let (width, height) = (width.clamp(1, max), height.clamp(1, max));
         if (width, height) != self.size() {
-            self.target = Target::new(&self.gpu.device, width, height);
+            self.output.resize(&self.gpu.device, width, height);
         }
     }
 
@@ -201,6 +234,7 @@ impl Renderer {
         let upload_ms = started.elapsed().as_secs_f64() * 1e3;
 
         let started = Instant::now();
+        let frame = self.output.begin(&self.gpu.device)?;
         let [r, g, b] = style.background.map(|c| f64::from(c) / 255.0);
         let mut encoder = self
             .gpu
@@ -212,7 +246,7 @@ impl Renderer {
             let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
                 label: Some("farfield splats"),
                 color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                    view: &self.target.color_view,
+                    view: &frame.color,
                     depth_slice: None,
                     resolve_target: None,
                     ops: wgpu::Operations {
@@ -221,7 +255,7 @@ impl Renderer {
                     },
                 })],
                 depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
-                    view: &self.target.depth_view,
+                    view: &frame.depth,
                     // Reversed Z: 0 is infinitely far.
                     depth_ops: Some(wgpu::Operations {
                         load: wgpu::LoadOp::Clear(0.0),
@@ -240,9 +274,7 @@ impl Renderer {
                 pass.draw(0..4, 0..count as u32);
             }
         }
-        self.target.copy_out(&mut encoder);
-        self.gpu.queue.submit([encoder.finish()]);
-        let rgba = self.target.read(&self.gpu.device)?;
+        let rgba = self.output.finish(&self.gpu, frame, encoder)?;
         let draw_ms = started.elapsed().as_secs_f64() * 1e3;
         if let Some(e) = pollster::block_on(scope.pop()) {
             bail!("rendering {} splats: {e}", splats.len());
@@ -320,4 +352,14 @@ fn frame_uniform(view: &View, near: f64, style: &SplatStyle) -> FrameUniform {
             0.0,
         ],
     }
+}
+
+/// Refuses a frame larger than the adapter's largest texture.
+fn check_size(device: &wgpu::Device, width: u32, height: u32) -> anyhow::Result<()> {
+    let max = device.limits().max_texture_dimension_2d;
+    ensure!(
+        width <= max && height <= max,
+        "frame size {width}x{height} exceeds this adapter's {max} pixels"
+    );
+    Ok(())
 }

@@ -1,4 +1,5 @@
-//! The offscreen frame: color and depth textures and the readback buffer.
+//! The offscreen frame: color and depth textures and the readback buffer
+//! (the other destination, a surface, is in `output`).
 //!
 //! Color is `Rgba8Unorm` (not sRGB) so the bytes of the scene come back
 //! unchanged; depth is `Depth32Float`, used reversed (1 near, 0 far).
@@ -25,10 +26,13 @@ pub(crate) fn depth_test(write: bool) -> wgpu::DepthStencilState {
     }
 }
 
-/// The frame's color target, blended or not.
-pub(crate) fn color_target(blend: Option<wgpu::BlendState>) -> Option<wgpu::ColorTargetState> {
+/// A color target of `format`, blended or not.
+pub(crate) fn color_target(
+    format: wgpu::TextureFormat,
+    blend: Option<wgpu::BlendState>,
+) -> Option<wgpu::ColorTargetState> {
     Some(wgpu::ColorTargetState {
-        format: COLOR_FORMAT,
+        format,
         blend,
         write_mask: wgpu::ColorWrites::ALL,
     })

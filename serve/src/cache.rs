@@ -132,15 +132,8 @@ impl PageCache {
 /// The page's stored bytes as a frame, after checking its checksum, header
 /// and agreement with the directory.
 fn read_verified(scene: &ServedScene, page: u32) -> Result<Bytes, FormatError> {
-    scene.file.verify_page(page as usize)?;
-    let bytes = scene
-        .file
-        .page_bytes(page as usize)
-        .ok_or(FormatError::BadPage {
-            page,
-            message: "outside the file".into(),
-        })?;
-    Ok(Bytes::from(encode_page_frame(bytes)))
+    let bytes = scene.source.read_page(page)?;
+    Ok(Bytes::from(encode_page_frame(&bytes)))
 }
 
 #[cfg(test)]

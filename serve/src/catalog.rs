@@ -1,5 +1,6 @@
-//! The scenes a server holds: one memory-mapped [`SceneFile`] each, found
-//! by scanning a folder for `*.ff` or given as (name, path) pairs.
+//! The scenes a server holds: one [`PageSource`] each (a memory-mapped
+//! [`SceneFile`] for now), found by scanning a folder for `*.ff` or given
+//! as (name, path) pairs.
 //!
 //! A scene also precomputes, per page, the range of pages that hold the
 //! children of its nodes, which is what prefetch reads ahead.
@@ -12,7 +13,8 @@ use std::sync::Arc;
 use serde_json::{Value, json};
 
 use super::ServeError;
-use farfield_store::{SceneFile, StoreError};
+use farfield_protocol::file::FileHeader;
+use farfield_store::{PageSource, SceneFile, StoreError};
 
 /// The extension of the paged files a scenes folder is scanned for.
 pub const SCENE_EXTENSION: &str = "ff";
@@ -23,30 +25,31 @@ pub struct ServedScene {
     /// Index in the catalog; part of the page cache key.
     pub id: u32,
     pub name: String,
-    pub file: SceneFile,
+    /// Where its header and pages come from.
+    pub source: Box<dyn PageSource>,
     /// Per page: the pages holding children of its nodes (never itself).
     children: Vec<Range<u32>>,
 }
 
 impl ServedScene {
     pub fn open(id: u32, name: &str, path: &Path) -> Result<Self, StoreError> {
-        let file = SceneFile::open(path)?;
-        let children = child_ranges(&file);
+        let source = SceneFile::open(path)?;
+        let children = child_ranges(&source.header);
         Ok(Self {
             id,
             name: name.to_owned(),
-            file,
+            source: Box::new(source),
             children,
         })
     }
 
     pub fn page_count(&self) -> u32 {
-        u32::try_from(self.file.header.pages.len()).unwrap_or(u32::MAX)
+        u32::try_from(self.source.header().pages.len()).unwrap_or(u32::MAX)
     }
 
     /// Stored length of `page` (as the directory says), if it exists.
     pub fn page_len(&self, page: u32) -> Option<u64> {
-        let e = self.file.header.pages.get(page as usize)?;
+        let e = self.source.header().pages.get(page as usize)?;
         Some(u64::from(e.length))
     }
 
@@ -57,20 +60,20 @@ impl ServedScene {
 
     /// The short description `GET /scenes` lists.
     pub fn summary(&self) -> Value {
-        let h = &self.file.header;
+        let h = &self.source.header();
         json!({
             "name": self.name,
             "kind": h.kind.name(),
             "bounds_min": h.bounds_min.to_array(),
             "bounds_max": h.bounds_max.to_array(),
             "nodes": h.nodes,
-            "bytes": self.file.len(),
+            "bytes": self.source.stored_len(),
         })
     }
 
     /// The summary plus pages and attributes, for `GET /scenes/{name}`.
     pub fn details(&self) -> Value {
-        let h = &self.file.header;
+        let h = &self.source.header();
         let mut v = self.summary();
         if let Value::Object(map) = &mut v {
             let extra = json!({
@@ -98,8 +101,7 @@ impl ServedScene {
 /// Children of page p's nodes are the breadth-first range from p's
 /// `first_child` to the next page's (or to the node count for the last
 /// page); the pages holding that range are found through the directory.
-fn child_ranges(file: &SceneFile) -> Vec<Range<u32>> {
-    let h = &file.header;
+fn child_ranges(h: &FileHeader) -> Vec<Range<u32>> {
     let n = h.pages.len();
     (0..n)
         .map(|p| {
@@ -144,7 +146,7 @@ impl Catalog {
                         scene = %name,
                         path = %path.display(),
                         pages = scene.page_count(),
-                        nodes = scene.file.header.nodes,
+                        nodes = scene.source.header().nodes,
                         "serving scene"
                     );
                     catalog.by_name.insert(name.clone(), catalog.scenes.len());

@@ -212,7 +212,7 @@ pub(crate) async fn run(
             return;
         }
     };
-    let header = scene.file.header_bytes();
+    let header = scene.source.header_bytes();
     tracing::info!(%peer, scene = %scene.name, window, allow_push, "client connected");
 
     let shared = Shared {

@@ -4,7 +4,8 @@
 //! it into place only after everything is on disk, so a failed or
 //! interrupted build never leaves a half file under the target's name;
 //! [`check_target`] tells a build before it starts that it could not.
-//! [`SceneFile`] maps a file and hands out page bytes, verified on request.
+//! [`SceneFile`] maps a file and hands out page bytes, verified on request;
+//! it is the one [`PageSource`] (the server's view of a stored scene) so far.
 
 use std::fs::File;
 use std::io::{BufWriter, Write};
@@ -16,6 +17,9 @@ use farfield_protocol::page::Page;
 use memmap2::Mmap;
 
 use farfield_protocol::paged_file::PagedFile;
+
+mod source;
+pub use source::PageSource;
 
 /// Why a file could not be written or read. The cause is a field named
 /// `error`, printed in the message (as in the importers' `ImportError`).

@@ -1,7 +1,8 @@
 //! The memory server end to end: a real server on a loopback port, in
 //! process, serving small generated scenes; HTTP through a raw TCP GET and
 //! websocket sessions through tokio-tungstenite, speaking the protocol byte
-//! for byte. Every wait is bounded, so a broken server fails a test instead
+//! for byte (not through the client's `Session`, which would hide the
+//! frames, close codes and misbehaviour these tests need to control). Every wait is bounded, so a broken server fails a test instead
 //! of hanging it.
 
 use std::collections::HashSet;
@@ -12,6 +13,7 @@ use std::time::Duration;
 
 use farfield_builder::PagedFile;
 use farfield_builder::import::{Params, load_input};
+use farfield_net::stream_url;
 use farfield_protocol::codec::{
     MAX_CONTROL_BYTES, decode_control, encode_control, encode_page_frame, frame_kind,
 };
@@ -19,6 +21,7 @@ use farfield_protocol::file::FileHeader;
 use farfield_protocol::messages::{
     ClientMessage, FrameKind, PROTOCOL_VERSION, PageWish, ServerMessage,
 };
+use farfield_protocol::page::claimed_index;
 use farfield_serve::{RunningServer, ServerConfig, start};
 use farfield_store::write_atomic;
 use farfield_tests::scratch;
@@ -127,7 +130,7 @@ struct Client {
 
 impl Client {
     async fn connect(addr: SocketAddr, scene: &str) -> Self {
-        let url = format!("ws://{addr}/scenes/{scene}/stream");
+        let url = stream_url(&addr.to_string(), scene);
         let (ws, _) = tokio::time::timeout(T, tokio_tungstenite::connect_async(url))
             .await
             .expect("connect timed out")
@@ -190,7 +193,7 @@ impl Client {
             return Some(match next {
                 Some(Ok(Message::Binary(b))) => match frame_kind(&b).expect("frame kind") {
                     (FrameKind::Page, page) => {
-                        let index = u32::from_le_bytes(page[4..8].try_into().expect("index"));
+                        let index = claimed_index(page).expect("index");
                         In::Page(index, page.to_vec())
                     }
                     (FrameKind::Header, header) => In::Header(header.to_vec()),
@@ -470,7 +473,7 @@ async fn a_client_that_stops_reading_still_has_its_cancels_read_and_stalls_no_on
     let socket = tokio::net::TcpSocket::new_v4().expect("socket");
     socket.set_recv_buffer_size(4096).expect("small buffer");
     let stream = socket.connect(addr).await.expect("connect");
-    let url = format!("ws://{addr}/scenes/tree/stream");
+    let url = stream_url(&addr.to_string(), "tree");
     let (ws, _) = tokio::time::timeout(
         T,
         tokio_tungstenite::client_async(url, MaybeTlsStream::Plain(stream)),
@@ -732,7 +735,7 @@ async fn a_corrupt_page_is_reported_and_never_sent() {
 async fn unknown_scene_stream_is_refused_with_404() {
     let dir = scenes_dir("serve-unknown");
     let server = serve(&dir).await;
-    let url = format!("ws://{}/scenes/nope/stream", server.local_addr());
+    let url = stream_url(&server.local_addr().to_string(), "nope");
     match tokio::time::timeout(T, tokio_tungstenite::connect_async(url))
         .await
         .expect("timed out")

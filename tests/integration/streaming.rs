@@ -247,7 +247,7 @@ fn two_clients_at_once_and_a_stalled_reader_does_not_stall_others() {
     let server = serve(&rt, &dir, 0);
     let url = format!("http://{}", server.local_addr());
     // A client that asks for every page with a tiny window and never reads.
-    let ws = format!("ws://{}/scenes/island/stream", server.local_addr());
+    let ws = farfield_net::stream_url(&url, "island");
     let pages = farfield_store::SceneFile::open(&dir.join("island.ff"))
         .unwrap()
         .header

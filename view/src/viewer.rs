@@ -233,3 +233,7 @@ fn evict(h: &mut Hierarchy, recency: &mut LruCache<u32, ()>, cache_bytes: usize)
         h.evict_page(page);
     }
 }
+
+#[cfg(test)]
+#[path = "viewer_tests.rs"]
+mod tests;

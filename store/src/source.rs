@@ -1,0 +1,53 @@
+//! [`PageSource`]: where a served scene's bytes come from.
+//!
+//! The memory server asks a source for the header once and for pages as
+//! clients need them; it never touches a file or a map itself. The one
+//! source now is [`crate::SceneFile`], a memory-mapped file; object storage
+//! is a new implementation of this trait, and nothing in the server
+//! changes for it.
+
+use std::borrow::Cow;
+
+use farfield_protocol::FormatError;
+use farfield_protocol::file::FileHeader;
+
+/// A scene's stored bytes: its header and its pages, verified on read.
+pub trait PageSource: Send + Sync + std::fmt::Debug {
+    /// The scene's header, decoded.
+    fn header(&self) -> &FileHeader;
+    /// The header as stored (fixed part, directory and checksum), which the
+    /// server sends verbatim so clients decode exactly what is stored.
+    fn header_bytes(&self) -> &[u8];
+    /// Bytes of the whole scene as stored.
+    fn stored_len(&self) -> u64;
+    /// Page `index`'s stored bytes, after checking its checksum, its header
+    /// and its agreement with the directory. May block on a disk or a
+    /// network: the server calls it from its blocking pool and its prefetch
+    /// threads, never from an async task.
+    fn read_page(&self, index: u32) -> Result<Cow<'_, [u8]>, FormatError>;
+}
+
+impl PageSource for crate::SceneFile {
+    fn header(&self) -> &FileHeader {
+        &self.header
+    }
+
+    fn header_bytes(&self) -> &[u8] {
+        crate::SceneFile::header_bytes(self)
+    }
+
+    fn stored_len(&self) -> u64 {
+        self.len()
+    }
+
+    fn read_page(&self, index: u32) -> Result<Cow<'_, [u8]>, FormatError> {
+        self.verify_page(index as usize)?;
+        let bytes = self
+            .page_bytes(index as usize)
+            .ok_or(FormatError::BadPage {
+                page: index,
+                message: "outside the file".into(),
+            })?;
+        Ok(Cow::Borrowed(bytes))
+    }
+}

@@ -1,0 +1,95 @@
+//! The viewer over a session with no socket: what arrives is verified into
+//! the resident pages, what fails is reported to the session, and the LRU
+//! keeps the cache within its bytes.
+
+use std::time::Duration;
+
+use farfield_builder::import::{Params, load_input};
+use farfield_builder::{BuildOptions, PagedFile, build_spheres};
+use farfield_net::memory::MemoryTransport;
+use farfield_net::{MAX_PAGE_FAILURES, SessionOptions, TransportEvent};
+use farfield_protocol::codec::{encode_header_frame, encode_page_frame};
+
+use super::*;
+
+fn scene() -> PagedFile {
+    let mut params = Params::default();
+    params.set("size", 64);
+    params.set("trees", 1);
+    let options = BuildOptions {
+        page_bytes: 1024,
+        ..BuildOptions::default()
+    };
+    let scene = load_input("gen:island", &params).expect("gen:island");
+    build_spheres(scene, &options).expect("build").0
+}
+
+fn frame(bytes: Vec<u8>) -> TransportEvent {
+    TransportEvent::Frame(bytes.into())
+}
+
+/// A viewer whose session has opened and holds page 0 of `file`.
+fn viewer(file: &PagedFile, cache_bytes: usize) -> (Viewer, MemoryTransport) {
+    let wire = MemoryTransport::default();
+    let mut v = Viewer::over(
+        Box::new(wire.clone()),
+        "http://test",
+        "island",
+        SessionOptions::default(),
+        cache_bytes,
+    );
+    wire.push(TransportEvent::Opened);
+    wire.push(frame(encode_header_frame(&file.header.encode())));
+    wire.push(frame(encode_page_frame(&file.pages[0])));
+    assert_eq!(v.pump(Duration::ZERO).expect("pump"), 1);
+    assert!(v.is_connected());
+    assert!(v.hierarchy().expect("header").is_resident(0));
+    assert_eq!(wire.connects(), vec!["ws://test/scenes/island/stream"]);
+    (v, wire)
+}
+
+#[test]
+fn a_page_failing_its_checksum_is_counted_never_resident_and_given_up_after_three() {
+    let file = scene();
+    let (mut v, wire) = viewer(&file, usize::MAX);
+    let mut bad = file.pages[1].clone();
+    bad[40] ^= 0x20;
+    for attempt in 1..=MAX_PAGE_FAILURES {
+        wire.push(frame(encode_page_frame(&bad)));
+        assert_eq!(v.pump(Duration::ZERO).expect("pump"), 0);
+        assert!(!v.hierarchy().unwrap().is_resident(1));
+        assert_eq!(v.stats().pages_rejected, u64::from(attempt));
+    }
+    let failed = v.failed_pages();
+    assert_eq!(failed.len(), 1);
+    assert_eq!(failed[0].page, 1);
+    assert!(failed[0].reason.contains("page 1"), "{failed:?}");
+    assert!(v.gave_up(1));
+    // The good bytes are still taken.
+    wire.push(frame(encode_page_frame(&file.pages[1])));
+    assert_eq!(v.pump(Duration::ZERO).expect("pump"), 1);
+    assert!(v.hierarchy().unwrap().is_resident(1));
+}
+
+#[test]
+fn the_least_recently_used_pages_go_first_and_page_zero_stays() {
+    let file = scene();
+    assert!(file.pages.len() >= 4, "{} pages", file.pages.len());
+    // Room for page 0 and about two more.
+    let budget = file.pages[..3].iter().map(Vec::len).sum::<usize>() + 64;
+    let (mut v, wire) = viewer(&file, budget);
+    for p in 1..4 {
+        wire.push(frame(encode_page_frame(&file.pages[p])));
+        v.pump(Duration::ZERO).expect("pump");
+        v.touch(&[0]);
+    }
+    let h = v.hierarchy().unwrap();
+    assert!(
+        h.resident_bytes() <= budget,
+        "{} > {budget}",
+        h.resident_bytes()
+    );
+    assert!(h.is_resident(0), "page 0 is never evicted");
+    assert!(!h.is_resident(1), "page 1 was the least recently used");
+    assert!(h.is_resident(3), "the newest page stays");
+}
