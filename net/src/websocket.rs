@@ -21,8 +21,8 @@ use crate::transport::{Transport, TransportEvent};
 #[derive(Debug)]
 pub struct WebSocketTransport {
     runtime: tokio::runtime::Handle,
-    /// Ends the runtime's thread when dropped.
-    _stop: oneshot::Sender<()>,
+    /// Ends the runtime's thread when dropped (none on a borrowed runtime).
+    _stop: Option<oneshot::Sender<()>>,
     current: Option<Connection>,
 }
 
@@ -49,9 +49,20 @@ impl WebSocketTransport {
             })?;
         Ok(Self {
             runtime: handle,
-            _stop: stop,
+            _stop: Some(stop),
             current: None,
         })
+    }
+
+    /// A transport whose sockets live on `runtime`, a runtime the caller
+    /// already runs (a load test's, or an embedded server's), instead of a
+    /// thread of its own.
+    pub fn on(runtime: tokio::runtime::Handle) -> Self {
+        Self {
+            runtime,
+            _stop: None,
+            current: None,
+        }
     }
 }
 
