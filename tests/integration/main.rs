@@ -13,6 +13,7 @@ mod progress;
 mod real_data;
 mod serve;
 mod streaming;
+mod surface;
 mod traversal;
 
 use std::path::Path;
