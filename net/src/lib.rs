@@ -8,15 +8,17 @@
 //! - [`transport`]: the [`Transport`] seam, binary frames in and out;
 //! - [`websocket`]: the native transport (not built for wasm32, where a
 //!   browser `WebSocket` takes its place);
-//! - [`memory`]: an in-memory transport for tests;
+//! - [`queue`]: a transport whose bytes its owner moves (tests; async
+//!   drivers);
 //! - [`url`]: the stream URL of a scene, spelled once; [`stats`]: the
 //!   session's counters.
 //!
 //! Nothing here needs a multi-thread runtime: the session is driven by its
-//! owner's loop ([`Session::pump`]), and the native transport keeps its
-//! sockets on a current-thread runtime of its own.
+//! owner's loop ([`Session::pump`]); the native transport keeps its sockets
+//! on a current-thread runtime of its own (or on one the caller runs), and
+//! [`websocket::drive`] runs socket and session in one task of the caller's.
 
-pub mod memory;
+pub mod queue;
 pub mod session;
 pub mod stats;
 pub mod transport;
@@ -29,5 +31,5 @@ mod tests;
 
 pub use session::{MAX_PAGE_FAILURES, Session, SessionError, SessionEvent, SessionOptions};
 pub use stats::{FailedPage, NetStats};
-pub use transport::{Transport, TransportEvent};
+pub use transport::{Closing, Transport, TransportEvent};
 pub use url::stream_url;

@@ -31,7 +31,7 @@ use farfield_traverse::WantedPage;
 use web_time::Instant;
 
 use crate::stats::{FailedPage, NetStats};
-use crate::transport::{Transport, TransportEvent};
+use crate::transport::{Closing, Transport, TransportEvent};
 
 /// Checksum failures after which a page is given up on.
 pub const MAX_PAGE_FAILURES: u32 = 3;
@@ -39,6 +39,15 @@ pub const MAX_PAGE_FAILURES: u32 = 3;
 /// The first wait before reconnecting; it doubles up to [`MAX_BACKOFF`].
 const FIRST_BACKOFF: Duration = Duration::from_millis(50);
 const MAX_BACKOFF: Duration = Duration::from_secs(2);
+
+/// The hello frame for `options`: sent first on every connection.
+fn hello(options: &SessionOptions) -> Vec<u8> {
+    codec::encode_control(&ClientMessage::Hello {
+        protocol_version: PROTOCOL_VERSION,
+        max_in_flight_bytes: options.max_in_flight_bytes,
+        allow_push: options.allow_push,
+    })
+}
 
 /// What a client announces in its hello (`max_in_flight_bytes`,
 /// `allow_push`), and how long it tries to connect at first.
@@ -129,7 +138,7 @@ pub struct Session<T: Transport> {
 impl<T: Transport> Session<T> {
     /// Starts connecting to `url` (see [`crate::stream_url`]).
     pub fn open(mut transport: T, url: String, options: SessionOptions) -> Self {
-        transport.connect(&url);
+        transport.connect(&url, hello(&options));
         Self {
             transport,
             url,
@@ -212,7 +221,7 @@ impl<T: Transport> Session<T> {
         let now = Instant::now();
         match self.link {
             Link::Waiting { until } if now >= until => {
-                self.transport.connect(&self.url);
+                self.transport.connect(&self.url, hello(&self.options));
                 self.link = Link::Connecting;
             }
             // An attempt may not outlast the grace (a silently dropped
@@ -241,30 +250,26 @@ impl<T: Transport> Session<T> {
         acks: &mut Vec<u32>,
     ) -> Result<(), SessionError> {
         match event {
+            // The transport sent the hello it was given with `connect`.
             TransportEvent::Opened => {
                 self.connected_once = true;
                 self.link = Link::Open { header: false };
-                self.send(&ClientMessage::Hello {
-                    protocol_version: PROTOCOL_VERSION,
-                    max_in_flight_bytes: self.options.max_in_flight_bytes,
-                    allow_push: self.options.allow_push,
-                });
                 Ok(())
             }
             TransportEvent::Frame(frame) => match self.on_frame(frame, out, acks) {
                 Ok(result) => result,
                 Err(e) => {
                     self.transport.close();
-                    self.disconnected(format!("bad frame from server: {e}"))
+                    self.disconnected(format!("bad frame from server: {e}"), Closing::Failed)
                 }
             },
             // Nothing is connecting: stale news of an abandoned attempt.
             TransportEvent::Closed { .. } if matches!(self.link, Link::Waiting { .. }) => Ok(()),
-            TransportEvent::Closed { reason, refused } => {
-                if refused {
+            TransportEvent::Closed { reason, how } => {
+                if how == Closing::Refused {
                     return Err(SessionError::GaveUp(reason));
                 }
-                self.disconnected(reason)
+                self.disconnected(reason, how)
             }
         }
     }
@@ -286,9 +291,12 @@ impl<T: Transport> Session<T> {
                 ServerMessage::Hello {
                     protocol_version, ..
                 } if protocol_version != PROTOCOL_VERSION => {
-                    return Ok(Err(SessionError::Server(format!(
+                    let message = format!(
                         "server speaks protocol version {protocol_version}, this client {PROTOCOL_VERSION}"
-                    ))));
+                    );
+                    tracing::warn!("server: {message}");
+                    self.stats.last_error = Some(message.clone());
+                    return Ok(Err(SessionError::Server(message)));
                 }
                 ServerMessage::Hello { .. } => {}
                 ServerMessage::Error { message, fatal } => {
@@ -344,9 +352,10 @@ impl<T: Transport> Session<T> {
     /// The connection is gone: forget what the server forgot and wait
     /// before trying again, or give up when the server was never reached
     /// and the grace would run out first.
-    fn disconnected(&mut self, reason: String) -> Result<(), SessionError> {
-        let was_open = matches!(self.link, Link::Open { .. });
-        if was_open {
+    fn disconnected(&mut self, reason: String, how: Closing) -> Result<(), SessionError> {
+        // A server that closed an open connection (a restart) is tried
+        // again soon; one that breaks connections keeps the backoff growing.
+        if how == Closing::ByServer && matches!(self.link, Link::Open { .. }) {
             self.backoff = FIRST_BACKOFF;
         }
         let now = Instant::now();

@@ -13,7 +13,8 @@ use farfield_protocol::messages::{ClientMessage, PROTOCOL_VERSION, ServerMessage
 use farfield_traverse::WantedPage;
 
 use super::*;
-use crate::memory::MemoryTransport;
+use crate::queue::QueueTransport;
+use crate::transport::Closing;
 
 /// A small generated scene with several pages.
 fn scene() -> PagedFile {
@@ -44,8 +45,8 @@ fn server_hello() -> TransportEvent {
 }
 
 /// A session whose transport has opened and delivered the header.
-fn connected(file: &PagedFile) -> (Session<MemoryTransport>, MemoryTransport) {
-    let wire = MemoryTransport::default();
+fn connected(file: &PagedFile) -> (Session<QueueTransport>, QueueTransport) {
+    let wire = QueueTransport::default();
     let mut s = Session::open(
         wire.clone(),
         "ws://test/scenes/a/stream".into(),
@@ -61,7 +62,7 @@ fn connected(file: &PagedFile) -> (Session<MemoryTransport>, MemoryTransport) {
 }
 
 /// The control messages the session sent since the last call.
-fn sent(wire: &MemoryTransport) -> Vec<ClientMessage> {
+fn sent(wire: &QueueTransport) -> Vec<ClientMessage> {
     wire.take_sent()
         .iter()
         .map(|f| decode_control(f).expect("client message"))
@@ -191,7 +192,7 @@ fn a_reconnect_waits_then_asks_again_only_for_what_is_missing() {
     sent(&wire);
     wire.push(TransportEvent::Closed {
         reason: "server went away".into(),
-        refused: false,
+        how: Closing::ByServer,
     });
     s.pump(Duration::ZERO)
         .expect("a lost connection is not an error");
@@ -231,7 +232,7 @@ fn another_scene_after_a_reconnect_ends_the_session() {
     let (mut s, wire) = connected(&file);
     wire.push(TransportEvent::Closed {
         reason: "restart".into(),
-        refused: false,
+        how: Closing::ByServer,
     });
     s.pump(Duration::ZERO).expect("pump");
     s.pump(Duration::from_millis(200)).expect("pump");
@@ -251,7 +252,7 @@ fn another_scene_after_a_reconnect_ends_the_session() {
 
 #[test]
 fn a_refusal_ends_the_session_with_the_servers_reason() {
-    let wire = MemoryTransport::default();
+    let wire = QueueTransport::default();
     let mut s = Session::open(
         wire.clone(),
         "ws://x/scenes/nope/stream".into(),
@@ -259,7 +260,7 @@ fn a_refusal_ends_the_session_with_the_servers_reason() {
     );
     wire.push(TransportEvent::Closed {
         reason: "ws://x/scenes/nope/stream: no scene named nope".into(),
-        refused: true,
+        how: Closing::Refused,
     });
     let error = s.pump(Duration::ZERO).expect_err("refused");
     assert_eq!(
@@ -270,7 +271,7 @@ fn a_refusal_ends_the_session_with_the_servers_reason() {
 
 #[test]
 fn a_server_never_reached_is_given_up_after_the_grace() {
-    let wire = MemoryTransport::default();
+    let wire = QueueTransport::default();
     let options = SessionOptions {
         first_connect_grace: Duration::from_millis(300),
         ..SessionOptions::default()
@@ -284,7 +285,7 @@ fn a_server_never_reached_is_given_up_after_the_grace() {
             refused += 1;
             wire.push(TransportEvent::Closed {
                 reason: "connect ws://x/s: connection refused".into(),
-                refused: false,
+                how: Closing::Failed,
             });
         }
         match s.pump(Duration::from_millis(20)) {
@@ -303,7 +304,7 @@ fn a_server_never_reached_is_given_up_after_the_grace() {
 
 #[test]
 fn a_server_of_another_protocol_version_ends_the_session() {
-    let wire = MemoryTransport::default();
+    let wire = QueueTransport::default();
     let mut s = Session::open(wire.clone(), "ws://x/s".into(), SessionOptions::default());
     wire.push(TransportEvent::Opened);
     wire.push(frame(encode_control(&ServerMessage::Hello {
@@ -312,4 +313,61 @@ fn a_server_of_another_protocol_version_ends_the_session() {
     })));
     let error = s.pump(Duration::ZERO).expect_err("other version");
     assert!(error.to_string().contains("protocol version"), "{error}");
+}
+
+/// Opens and at once loses a connection, `how`; returns the connects so far.
+fn open_and_lose(s: &mut Session<QueueTransport>, wire: &QueueTransport, how: Closing) -> usize {
+    wire.push(TransportEvent::Opened);
+    wire.push(TransportEvent::Closed {
+        reason: "lost".into(),
+        how,
+    });
+    s.pump(Duration::ZERO)
+        .expect("a lost connection is not an error");
+    wire.connects().len()
+}
+
+#[test]
+fn broken_connections_back_off_and_a_server_that_closes_is_retried_soon() {
+    // Broken again and again: 50, 100, 200 ms, then 400 ms.
+    let wire = QueueTransport::default();
+    let mut s = Session::open(wire.clone(), "ws://x/s".into(), SessionOptions::default());
+    for (wait_ms, connects) in [(100, 2), (150, 3), (250, 4)] {
+        open_and_lose(&mut s, &wire, Closing::Failed);
+        s.pump(Duration::from_millis(wait_ms)).expect("pump");
+        assert_eq!(
+            wire.connects().len(),
+            connects,
+            "reconnected within {wait_ms} ms"
+        );
+    }
+    open_and_lose(&mut s, &wire, Closing::Failed);
+    s.pump(Duration::from_millis(150)).expect("pump");
+    assert_eq!(wire.connects().len(), 4, "the fourth break waits 400 ms");
+    // Closed by the server each time: always the first, short wait.
+    let wire = QueueTransport::default();
+    let mut s = Session::open(wire.clone(), "ws://x/s".into(), SessionOptions::default());
+    for connects in 2..=5 {
+        open_and_lose(&mut s, &wire, Closing::ByServer);
+        s.pump(Duration::from_millis(150)).expect("pump");
+        assert_eq!(wire.connects().len(), connects);
+    }
+}
+
+#[test]
+fn the_hello_goes_out_with_every_connection_before_anything_else() {
+    let wire = QueueTransport::default();
+    let mut s = Session::open(wire.clone(), "ws://x/s".into(), SessionOptions::default());
+    // Queued with the attempt, before the owner pumps the opened connection.
+    assert!(matches!(
+        sent(&wire).as_slice(),
+        [ClientMessage::Hello { .. }]
+    ));
+    open_and_lose(&mut s, &wire, Closing::ByServer);
+    s.pump(Duration::from_millis(150)).expect("pump");
+    assert_eq!(wire.connects().len(), 2);
+    assert!(matches!(
+        sent(&wire).as_slice(),
+        [ClientMessage::Hello { .. }]
+    ));
 }

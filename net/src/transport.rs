@@ -4,7 +4,8 @@
 //! connection opened or ended; it knows nothing of the protocol. The
 //! session ([`crate::Session`]) decides when to connect, what to send and
 //! what a frame means. Implementations: [`crate::websocket`] (native,
-//! tokio-tungstenite on a thread of its own), [`crate::memory`] (tests),
+//! tokio-tungstenite on a thread of its own), [`crate::queue`] (tests, and
+//! async drivers that move the bytes themselves),
 //! and a browser `WebSocket` next.
 
 use std::time::Duration;
@@ -19,18 +20,33 @@ pub enum TransportEvent {
     Opened,
     /// One binary frame from the server.
     Frame(Bytes),
-    /// The attempt failed or the open connection ended, with why.
-    /// `refused` when the server answered with a reason a retry cannot
-    /// change (a 4xx other than 408 and 429, such as an unknown scene's
-    /// 404); `reason` is then the server's own words.
-    Closed { reason: String, refused: bool },
+    /// The attempt failed or the open connection ended, with why and how.
+    Closed { reason: String, how: Closing },
+}
+
+/// How a connection ended.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Closing {
+    /// The server answered with a reason a retry cannot change (a 4xx
+    /// other than 408 and 429, such as an unknown scene's 404); the reason
+    /// is the server's own words.
+    Refused,
+    /// The server ended an open connection (a close frame, or the end of
+    /// the stream): a restart, say. The next attempt comes soon.
+    ByServer,
+    /// The attempt failed or the connection broke (refused by the host,
+    /// reset, a read or write error): retries back off.
+    Failed,
 }
 
 /// Binary frames to and from one server, one connection at a time.
 pub trait Transport: std::fmt::Debug {
     /// Starts a connection attempt to `url`, abandoning any current one
-    /// (nothing of an abandoned connection is reported after this call).
-    fn connect(&mut self, url: &str);
+    /// (nothing of an abandoned connection is reported or sent after this
+    /// call). `hello` is the first frame, sent the moment the connection
+    /// opens, whenever the owner next pumps the session: a server waits
+    /// for it only so long.
+    fn connect(&mut self, url: &str, hello: Vec<u8>);
     /// Queues a frame on the open connection; dropped when none is open
     /// (the session asks again after the next connection).
     fn send(&mut self, frame: Vec<u8>);
@@ -42,8 +58,8 @@ pub trait Transport: std::fmt::Debug {
 }
 
 impl<T: Transport + ?Sized> Transport for Box<T> {
-    fn connect(&mut self, url: &str) {
-        (**self).connect(url);
+    fn connect(&mut self, url: &str, hello: Vec<u8>) {
+        (**self).connect(url, hello);
     }
 
     fn send(&mut self, frame: Vec<u8>) {

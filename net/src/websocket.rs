@@ -1,21 +1,30 @@
-//! [`WebSocketTransport`]: the native transport, tokio-tungstenite on a
-//! thread of its own.
+//! The native websocket, two ways: [`WebSocketTransport`], tokio-tungstenite
+//! on a thread of its own (or on a runtime the caller runs), for owners that
+//! pump a session from their own loop; and [`drive`], a session's sockets
+//! and its protocol state in one async task, for load tests that run many
+//! sessions on one runtime.
 //!
-//! The thread runs a current-thread tokio runtime; each connection is one
+//! The transport's thread runs a current-thread tokio runtime; each connection is one
 //! task on it with its own pair of channels, so abandoning a connection
 //! (dropping its channels and aborting its task) guarantees that nothing of
 //! it is reported afterwards. The caller's thread never enters the runtime:
 //! it sends frames through an unbounded channel and waits for events on a
 //! standard one, with a timeout.
 
+use std::future::Future;
+use std::pin::Pin;
 use std::sync::mpsc;
 use std::time::Duration;
 
-use futures_util::{SinkExt, StreamExt};
+use bytes::Bytes;
+use futures_util::{FutureExt, SinkExt, StreamExt};
 use tokio::sync::{mpsc as async_mpsc, oneshot};
 use tokio_tungstenite::tungstenite::{self, Message};
+use tokio_tungstenite::{MaybeTlsStream, WebSocketStream};
 
-use crate::transport::{Transport, TransportEvent};
+use crate::queue::QueueTransport;
+use crate::session::{Session, SessionError, SessionEvent};
+use crate::transport::{Closing, Transport, TransportEvent};
 
 /// The native websocket transport.
 #[derive(Debug)]
@@ -73,10 +82,12 @@ impl Drop for WebSocketTransport {
 }
 
 impl Transport for WebSocketTransport {
-    fn connect(&mut self, url: &str) {
+    fn connect(&mut self, url: &str, hello: Vec<u8>) {
         self.close();
         let (event_tx, events) = mpsc::channel();
         let (outgoing, out_rx) = async_mpsc::unbounded_channel();
+        // First in line: sent the moment the socket opens.
+        let _ = outgoing.send(hello);
         let task = self
             .runtime
             .spawn(connection(url.to_owned(), event_tx, out_rx))
@@ -132,7 +143,7 @@ impl Transport for WebSocketTransport {
                 self.current = None;
                 Some(TransportEvent::Closed {
                     reason: "the network task ended".into(),
-                    refused: false,
+                    how: Closing::Failed,
                 })
             }
         }
@@ -146,11 +157,11 @@ async fn connection(
     events: mpsc::Sender<TransportEvent>,
     mut outgoing: async_mpsc::UnboundedReceiver<Vec<u8>>,
 ) {
-    let (reason, refused) = match run(&url, &events, &mut outgoing).await {
+    let (reason, how) = match run(&url, &events, &mut outgoing).await {
         Ok(()) => return,
         Err(end) => end,
     };
-    let _ = events.send(TransportEvent::Closed { reason, refused });
+    let _ = events.send(TransportEvent::Closed { reason, how });
 }
 
 /// `Ok` when the receiver went away; otherwise why the connection ended.
@@ -158,19 +169,8 @@ async fn run(
     url: &str,
     events: &mpsc::Sender<TransportEvent>,
     outgoing: &mut async_mpsc::UnboundedReceiver<Vec<u8>>,
-) -> Result<(), (String, bool)> {
-    let lost = |reason: String| (reason, false);
-    // No Nagle: requests and acknowledgements are small and must not sit
-    // waiting for the server's delayed ACKs (40 ms a round trip otherwise).
-    let socket = match tokio_tungstenite::connect_async_with_config(url, None, true).await {
-        Ok((socket, _)) => socket,
-        Err(e) => {
-            return Err(match refusal(url, &e) {
-                Some(reason) => (reason, true),
-                None => lost(format!("connect {url}: {e}")),
-            });
-        }
-    };
+) -> Result<(), (String, Closing)> {
+    let socket = open(url).await?;
     if events.send(TransportEvent::Opened).is_err() {
         return Ok(());
     }
@@ -178,27 +178,162 @@ async fn run(
     loop {
         tokio::select! {
             incoming = stream.next() => {
-                let Some(incoming) = incoming else {
-                    return Err(lost("server closed the stream".into()));
-                };
-                let frame = match incoming.map_err(|e| lost(e.to_string()))? {
-                    Message::Binary(frame) => frame,
-                    Message::Close(frame) => {
-                        let reason = frame.map(|f| f.reason.to_string()).unwrap_or_default();
-                        return Err(lost(format!("server closed the connection {reason}")));
-                    }
-                    _ => continue,
-                };
+                let Some(frame) = frame_of(incoming)? else { continue };
                 if events.send(TransportEvent::Frame(frame)).is_err() {
                     return Ok(());
                 }
             }
             frame = outgoing.recv() => {
                 let Some(frame) = frame else { return Ok(()) };
-                sink.send(Message::Binary(frame.into())).await.map_err(|e| lost(e.to_string()))?;
+                sink.send(Message::Binary(frame.into()))
+                    .await
+                    .map_err(|e| (e.to_string(), Closing::Failed))?;
             }
         }
     }
+}
+
+/// A client websocket.
+type Socket = WebSocketStream<MaybeTlsStream<tokio::net::TcpStream>>;
+
+/// Connects to `url`; the error is why, and whether the server refused.
+async fn open(url: &str) -> Result<Socket, (String, Closing)> {
+    // No Nagle: requests and acknowledgements are small and must not sit
+    // waiting for the server's delayed ACKs (40 ms a round trip otherwise).
+    match tokio_tungstenite::connect_async_with_config(url, None, true).await {
+        Ok((socket, _)) => Ok(socket),
+        Err(e) => Err(match refusal(url, &e) {
+            Some(reason) => (reason, Closing::Refused),
+            None => (format!("connect {url}: {e}"), Closing::Failed),
+        }),
+    }
+}
+
+/// What one read from the socket brought: a binary frame, nothing of
+/// interest (`None`: pings, text), or the end of the connection, why and how.
+fn frame_of(
+    incoming: Option<Result<Message, tungstenite::Error>>,
+) -> Result<Option<Bytes>, (String, Closing)> {
+    let Some(incoming) = incoming else {
+        return Err(("server closed the stream".into(), Closing::ByServer));
+    };
+    match incoming.map_err(|e| (e.to_string(), Closing::Failed))? {
+        Message::Binary(frame) => Ok(Some(frame)),
+        Message::Close(frame) => {
+            let reason = frame.map(|f| f.reason.to_string()).unwrap_or_default();
+            Err((
+                format!("server closed the connection {reason}"),
+                Closing::ByServer,
+            ))
+        }
+        _ => Ok(None),
+    }
+}
+
+/// How long [`drive`] waits for a frame before it lets the session's
+/// timers (reconnects, the first-connect grace) run.
+const TICK: Duration = Duration::from_millis(20);
+
+/// Most frames [`drive`] takes off a socket before pumping the session.
+const BATCH: usize = 64;
+
+/// Runs `session`'s connections inside the calling async task: its
+/// socket and its protocol state on one task, no thread of its own, so a
+/// load test runs many sessions on one runtime. `wire` is the session's
+/// transport (a clone of it). After every pump, `each` sees the events and
+/// the session, and says whether to go on; `drive` returns when it says no
+/// or the session ends.
+pub async fn drive(
+    session: &mut Session<QueueTransport>,
+    wire: &QueueTransport,
+    mut each: impl FnMut(&mut Session<QueueTransport>, Vec<SessionEvent>) -> bool,
+) -> Result<(), SessionError> {
+    let mut socket: Option<Socket> = None;
+    // An attempt under way; the session's timers (the first-connect grace)
+    // keep running while it is, and may abandon it.
+    let mut connecting: Option<Pin<Box<dyn Future<Output = Opened> + Send>>> = None;
+    loop {
+        if wire.take_close() {
+            (socket, connecting) = (None, None);
+        }
+        if let Some(url) = wire.take_connect() {
+            socket = None;
+            connecting = Some(Box::pin(async move { open(&url).await }));
+        }
+        if let Some(attempt) = connecting.as_mut()
+            && let Ok(opened) = tokio::time::timeout(TICK, attempt).await
+        {
+            connecting = None;
+            match opened {
+                Ok(s) => {
+                    socket = Some(s);
+                    wire.push(TransportEvent::Opened);
+                }
+                Err((reason, how)) => wire.push(TransportEvent::Closed { reason, how }),
+            }
+        }
+        let events = session.pump(Duration::ZERO)?;
+        if !each(session, events) {
+            return Ok(());
+        }
+        let Some(s) = socket.as_mut() else {
+            if connecting.is_none() {
+                tokio::time::sleep(TICK).await;
+            }
+            continue;
+        };
+        // The hello first, then what the session queued since.
+        if let Err(reason) = send_all(s, wire.take_sent()).await {
+            socket = None;
+            wire.push(TransportEvent::Closed {
+                reason,
+                how: Closing::Failed,
+            });
+            continue;
+        }
+        // The next frame, then whatever else is ready, up to a batch.
+        let Ok(first) = tokio::time::timeout(TICK, s.next()).await else {
+            continue;
+        };
+        let mut next = Some(first);
+        let mut taken = 0;
+        let mut ended = None;
+        while let Some(incoming) = next.take() {
+            match frame_of(incoming) {
+                Ok(Some(frame)) => wire.push(TransportEvent::Frame(frame)),
+                Ok(None) => {}
+                Err(end) => {
+                    ended = Some(end);
+                    break;
+                }
+            }
+            taken += 1;
+            if taken < BATCH {
+                next = s.next().now_or_never();
+            }
+        }
+        if let Some((reason, how)) = ended {
+            socket = None;
+            wire.push(TransportEvent::Closed { reason, how });
+        }
+    }
+}
+
+/// What an attempt to connect yields.
+type Opened = Result<Socket, (String, Closing)>;
+
+/// Sends frames and flushes once.
+async fn send_all(socket: &mut Socket, frames: Vec<Vec<u8>>) -> Result<(), String> {
+    if frames.is_empty() {
+        return Ok(());
+    }
+    for frame in frames {
+        socket
+            .feed(Message::Binary(frame.into()))
+            .await
+            .map_err(|e| e.to_string())?;
+    }
+    socket.flush().await.map_err(|e| e.to_string())
 }
 
 /// The server's reason when it refused the connection with a client error

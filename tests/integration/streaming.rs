@@ -489,3 +489,70 @@ fn the_demo_writes_frames_a_csv_and_a_summary() {
     let second = demo(&job).expect("demo runs again");
     assert!(!second.built);
 }
+
+/// Sessions driven as tasks on one runtime (`farfield_net::websocket::drive`,
+/// as load tests run them) fetch every page of a scene, verified, and stop
+/// when asked.
+#[test]
+fn sessions_driven_as_tasks_fetch_every_page() {
+    use farfield_net::queue::QueueTransport;
+    use farfield_net::websocket::drive;
+    use farfield_net::{Session, SessionEvent, stream_url};
+    use farfield_protocol::hierarchy::Hierarchy;
+    use farfield_traverse::WantedPage;
+    let (dir, _) = scenes("driven");
+    let rt = runtime();
+    let server = serve(&rt, &dir, 0);
+    let url = stream_url(&format!("http://{}", server.local_addr()), "island");
+    let clients: Vec<_> = (0..3)
+        .map(|_| {
+            let url = url.clone();
+            rt.spawn(async move {
+                let wire = QueueTransport::default();
+                let mut session = Session::open(wire.clone(), url, SessionOptions::default());
+                let mut hierarchy: Option<Hierarchy> = None;
+                let mut asked = false;
+                let started = Instant::now();
+                let outcome = drive(&mut session, &wire, |session, events| {
+                    for event in events {
+                        match event {
+                            SessionEvent::Header(header) => {
+                                hierarchy = Some(Hierarchy::new(header).expect("header"));
+                            }
+                            SessionEvent::Page { index, bytes } => {
+                                let h = hierarchy.as_mut().expect("the header comes first");
+                                h.insert_page(index, &bytes).expect("a verified page");
+                            }
+                        }
+                    }
+                    let Some(h) = &hierarchy else { return true };
+                    let missing: Vec<WantedPage> = (0..h.header.pages.len() as u32)
+                        .filter(|&p| !h.is_resident(p as usize))
+                        .map(|page| WantedPage {
+                            page,
+                            priority: 1.0,
+                        })
+                        .collect();
+                    if !asked && session.is_connected() {
+                        session.request(&missing);
+                        asked = true;
+                    }
+                    !missing.is_empty() && started.elapsed() < Duration::from_secs(30)
+                })
+                .await;
+                (outcome, hierarchy)
+            })
+        })
+        .collect();
+    for client in clients {
+        let (outcome, hierarchy) = rt.block_on(client).expect("the task");
+        outcome.expect("the session did not end in error");
+        let h = hierarchy.expect("a header arrived");
+        assert_eq!(
+            h.resident_pages(),
+            h.header.pages.len(),
+            "every page arrived within 30 s"
+        );
+    }
+    rt.block_on(server.shutdown()).unwrap();
+}

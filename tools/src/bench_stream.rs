@@ -20,7 +20,8 @@ use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::time::{Duration, Instant};
 
 use anyhow::Context;
-use farfield_net::websocket::WebSocketTransport;
+use farfield_net::queue::QueueTransport;
+use farfield_net::websocket::drive;
 use farfield_net::{Session, SessionEvent, SessionOptions, stream_url};
 use farfield_render::{Kernel, Renderer, SplatStyle};
 use farfield_traverse::WantedPage;
@@ -142,7 +143,7 @@ pub fn run_bench(job: &BenchStreamJob) -> anyhow::Result<BenchStreamReport> {
         .len() as u32;
     let mut throughput = Vec::new();
     for &clients in &job.clients {
-        throughput.push(load(rt.handle(), &url, &name, pages, clients, job.seconds)?);
+        throughput.push(load(&rt, &url, &name, pages, clients, job.seconds)?);
     }
     let _ = rt.block_on(server.shutdown());
     Ok(BenchStreamReport {
@@ -222,13 +223,11 @@ async fn tcp_loopback_mb_per_s(seconds: f64) -> anyhow::Result<f64> {
 }
 
 /// `clients` sessions asking for every page again and again for `seconds`,
-/// each the client's own [`Session`] on a thread of its own, with its
-/// socket on the server's runtime (as the earlier hand-written load client
-/// was, so figures stay comparable; sockets on threads of their own cost a
-/// single client a quarter of its throughput on two cores). The process's
-/// RSS is sampled every 100 ms meanwhile.
+/// each the client's own [`Session`] driven as a task on the embedded
+/// server's runtime ([`drive`]: socket and session in one task, as a load
+/// test runs many); the process's RSS is sampled every 100 ms meanwhile.
 fn load(
-    runtime: &tokio::runtime::Handle,
+    runtime: &tokio::runtime::Runtime,
     url: &str,
     scene: &str,
     pages: u32,
@@ -238,7 +237,7 @@ fn load(
     let stop = Arc::new(AtomicBool::new(false));
     let (page_count, byte_count) = (Arc::new(AtomicU64::new(0)), Arc::new(AtomicU64::new(0)));
     let url = stream_url(url, scene);
-    let mut threads = Vec::new();
+    let mut tasks = Vec::new();
     for _ in 0..clients.max(1) {
         let (url, stop, pc, bc) = (
             url.clone(),
@@ -246,10 +245,7 @@ fn load(
             page_count.clone(),
             byte_count.clone(),
         );
-        let transport = WebSocketTransport::on(runtime.clone());
-        threads.push(std::thread::spawn(move || {
-            stream_all(transport, url, pages, &stop, &pc, &bc)
-        }));
+        tasks.push(runtime.spawn(async move { stream_all(url, pages, &stop, &pc, &bc).await }));
     }
     let started = Instant::now();
     let mut rss = Vec::new();
@@ -268,9 +264,8 @@ fn load(
         byte_count.load(Ordering::Relaxed),
     );
     stop.store(true, Ordering::Relaxed);
-    for t in threads {
-        t.join()
-            .map_err(|_| anyhow::anyhow!("a streaming client panicked"))??;
+    for t in tasks {
+        runtime.block_on(t)??;
     }
     Ok(Throughput {
         clients,
@@ -285,8 +280,7 @@ fn load(
 }
 
 /// One session asking for every page, then again once they all came.
-fn stream_all(
-    transport: WebSocketTransport,
+async fn stream_all(
     url: String,
     pages: u32,
     stop: &AtomicBool,
@@ -297,7 +291,8 @@ fn stream_all(
         max_in_flight_bytes: 8 << 20,
         ..SessionOptions::default()
     };
-    let mut session = Session::open(transport, url, options);
+    let wire = QueueTransport::default();
+    let mut session = Session::open(wire.clone(), url, options);
     let all: Vec<WantedPage> = (0..pages)
         .map(|page| WantedPage {
             page,
@@ -305,8 +300,8 @@ fn stream_all(
         })
         .collect();
     let (mut received, mut asked) = (0u32, false);
-    while !stop.load(Ordering::Relaxed) {
-        for event in session.pump(Duration::from_millis(200))? {
+    drive(&mut session, &wire, |session, events| {
+        for event in events {
             if let SessionEvent::Page { bytes, .. } = event {
                 page_count.fetch_add(1, Ordering::Relaxed);
                 byte_count.fetch_add(bytes.len() as u64, Ordering::Relaxed);
@@ -321,7 +316,9 @@ fn stream_all(
             session.request(&all);
             asked = true;
         }
-    }
+        !stop.load(Ordering::Relaxed)
+    })
+    .await?;
     Ok(())
 }
 

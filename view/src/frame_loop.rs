@@ -89,7 +89,7 @@ impl LastCut {
 }
 
 /// One frame: traverse what is resident, mark what was used, ask for what
-/// is missing, draw. The image lands in `rgba`. `threshold` is the kind's
+/// is missing, draw (asking first, so pages travel while the frame draws). The image lands in `rgba`. `threshold` is the kind's
 /// threshold in pixels (the splat size for spheres, eps for cubes).
 pub fn draw_frame(
     viewer: &mut Viewer,
@@ -112,9 +112,13 @@ pub fn draw_frame(
     let t = Instant::now();
     traversal.traverse(h, camera, &options);
     let traverse_ms = t.elapsed().as_secs_f64() * 1e3;
-    let image = renderer.draw(h, camera, traversal.draw_list(), style)?;
+    // Ask before drawing, so the pages are on their way during the draw.
     viewer.touch(traversal.touched_pages());
     viewer.request(traversal.wanted());
+    let Some(h) = viewer.hierarchy() else {
+        bail!("no scene header yet");
+    };
+    let image = renderer.draw(h, camera, traversal.draw_list(), style)?;
     *rgba = image.rgba;
     Ok(FrameTimes {
         traverse_ms,

@@ -6,7 +6,7 @@ use std::time::Duration;
 
 use farfield_builder::import::{Params, load_input};
 use farfield_builder::{BuildOptions, PagedFile, build_spheres};
-use farfield_net::memory::MemoryTransport;
+use farfield_net::queue::QueueTransport;
 use farfield_net::{MAX_PAGE_FAILURES, SessionOptions, TransportEvent};
 use farfield_protocol::codec::{encode_header_frame, encode_page_frame};
 
@@ -29,8 +29,8 @@ fn frame(bytes: Vec<u8>) -> TransportEvent {
 }
 
 /// A viewer whose session has opened and holds page 0 of `file`.
-fn viewer(file: &PagedFile, cache_bytes: usize) -> (Viewer, MemoryTransport) {
-    let wire = MemoryTransport::default();
+fn viewer(file: &PagedFile, cache_bytes: usize) -> (Viewer, QueueTransport) {
+    let wire = QueueTransport::default();
     let mut v = Viewer::over(
         Box::new(wire.clone()),
         "http://test",

@@ -33,7 +33,10 @@ pub fn run(
     let ms = started.elapsed().as_secs_f64() * 1e3;
     let cut = traversal.counts();
     if json {
+        // `splats` is what the cut draws: splats, or cube faces and leaf
+        // triangles for a cube hierarchy (`kind` says which).
         let j = serde_json::json!({
+            "kind": traversal.registered().name,
             "splats": cut.drawn, "visited": cut.visited, "frustum_culled": cut.frustum_culled,
             "backface_culled": cut.backface_culled, "traverse_ms": ms,
         });
