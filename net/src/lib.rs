@@ -15,7 +15,7 @@
 //!
 //! Nothing here needs a multi-thread runtime: the session is driven by its
 //! owner's loop ([`Session::pump`]); the native transport keeps its sockets
-//! on a current-thread runtime of its own (or on one the caller runs), and
+//! on a current-thread runtime of its own, and
 //! [`websocket::drive`] runs socket and session in one task of the caller's.
 
 pub mod queue;

@@ -1,5 +1,5 @@
 //! The native websocket, two ways: [`WebSocketTransport`], tokio-tungstenite
-//! on a thread of its own (or on a runtime the caller runs), for owners that
+//! on a thread of its own, for owners that
 //! pump a session from their own loop; and [`drive`], a session's sockets
 //! and its protocol state in one async task, for load tests that run many
 //! sessions on one runtime.
@@ -30,8 +30,8 @@ use crate::transport::{Closing, Transport, TransportEvent};
 #[derive(Debug)]
 pub struct WebSocketTransport {
     runtime: tokio::runtime::Handle,
-    /// Ends the runtime's thread when dropped (none on a borrowed runtime).
-    _stop: Option<oneshot::Sender<()>>,
+    /// Ends the runtime's thread when dropped.
+    _stop: oneshot::Sender<()>,
     current: Option<Connection>,
 }
 
@@ -58,20 +58,9 @@ impl WebSocketTransport {
             })?;
         Ok(Self {
             runtime: handle,
-            _stop: Some(stop),
+            _stop: stop,
             current: None,
         })
-    }
-
-    /// A transport whose sockets live on `runtime`, a runtime the caller
-    /// already runs (a load test's, or an embedded server's), instead of a
-    /// thread of its own.
-    pub fn on(runtime: tokio::runtime::Handle) -> Self {
-        Self {
-            runtime,
-            _stop: None,
-            current: None,
-        }
     }
 }
 
