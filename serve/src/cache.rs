@@ -2,7 +2,7 @@
 //! bounded in bytes.
 //!
 //! Values are ready-to-send page frames (the kind byte, then the page's
-//! stored bytes) copied out of the memory map, so sending a cached page to
+//! stored bytes) read straight into the frame, so sending a cached page to
 //! any number of clients is a reference-count increment, never a copy or a
 //! re-encode. A page's checksum is verified once, when it enters the cache;
 //! a page that fails is reported and never cached or sent.
@@ -12,7 +12,7 @@ use std::sync::{Arc, Mutex};
 
 use axum::body::Bytes;
 use farfield_protocol::FormatError;
-use farfield_protocol::codec::encode_page_frame;
+use farfield_protocol::messages::FrameKind;
 use lru::LruCache;
 
 use super::catalog::ServedScene;
@@ -132,8 +132,11 @@ impl PageCache {
 /// The page's stored bytes as a frame, after checking its checksum, header
 /// and agreement with the directory.
 fn read_verified(scene: &ServedScene, page: u32) -> Result<Bytes, FormatError> {
-    let bytes = scene.source.read_page(page)?;
-    Ok(Bytes::from(encode_page_frame(&bytes)))
+    let len = scene.page_len(page).unwrap_or(0) as usize;
+    let mut frame = Vec::with_capacity(len + 1);
+    frame.push(FrameKind::Page as u8);
+    scene.source.read_page(page, &mut frame)?;
+    Ok(Bytes::from(frame))
 }
 
 #[cfg(test)]

@@ -1,5 +1,5 @@
-//! The scenes a server holds: one [`PageSource`] each (a memory-mapped
-//! [`SceneFile`] for now), found by scanning a folder for `*.ff` or given
+//! The scenes a server holds: one [`PageSource`] each (a [`SceneFile`],
+//! read by positional reads, for now), found by scanning a folder for `*.ff` or given
 //! as (name, path) pairs.
 //!
 //! A scene also precomputes, per page, the range of pages that hold the

@@ -1,4 +1,4 @@
-//! The memory server: scenes on disk, memory-mapped, streamed page by page
+//! The memory server: scenes on disk, streamed page by page
 //! to websocket clients (the 1995 report's section 6.2, with QSplat's
 //! breadth-first pages).
 //!

@@ -183,7 +183,7 @@ impl Metrics {
         metric(
             "farfield_page_cache_misses_total",
             "counter",
-            "Page lookups that read the memory-mapped file.",
+            "Page lookups that read the scene's file.",
             s.cache_misses,
         );
         metric(

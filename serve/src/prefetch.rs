@@ -2,8 +2,8 @@
 //! children are loaded into the page cache before anyone asks for them
 //! (the 1995 report's memory server, section 6.2).
 //!
-//! A small pool of plain threads does the reading, because a memory-mapped
-//! read may fault in from disk and must not stall the async runtime. The
+//! A small pool of plain threads does the reading, because a read may wait
+//! on the disk and must not stall the async runtime. The
 //! queue in front of it is bounded: a hint that does not fit is dropped
 //! (and counted), since read-ahead is only ever an optimisation.
 

@@ -2,11 +2,9 @@
 //!
 //! The memory server asks a source for the header once and for pages as
 //! clients need them; it never touches a file or a map itself. The one
-//! source now is [`crate::SceneFile`], a memory-mapped file; object storage
+//! source now is [`crate::SceneFile`], a file read by positional reads; object storage
 //! is a new implementation of this trait, and nothing in the server
 //! changes for it.
-
-use std::borrow::Cow;
 
 use farfield_protocol::FormatError;
 use farfield_protocol::file::FileHeader;
@@ -20,11 +18,12 @@ pub trait PageSource: Send + Sync + std::fmt::Debug {
     fn header_bytes(&self) -> &[u8];
     /// Bytes of the whole scene as stored.
     fn stored_len(&self) -> u64;
-    /// Page `index`'s stored bytes, after checking its checksum, its header
-    /// and its agreement with the directory. May block on a disk or a
-    /// network: the server calls it from its blocking pool and its prefetch
-    /// threads, never from an async task.
-    fn read_page(&self, index: u32) -> Result<Cow<'_, [u8]>, FormatError>;
+    /// Appends page `index`'s stored bytes to `out`, after checking its
+    /// checksum, its header and its agreement with the directory (on an
+    /// error `out` is as it was). May block on a disk or a network: the
+    /// server calls it from its blocking pool and its prefetch threads, not
+    /// from its async tasks.
+    fn read_page(&self, index: u32, out: &mut Vec<u8>) -> Result<(), FormatError>;
 }
 
 impl PageSource for crate::SceneFile {
@@ -40,14 +39,7 @@ impl PageSource for crate::SceneFile {
         self.len()
     }
 
-    fn read_page(&self, index: u32) -> Result<Cow<'_, [u8]>, FormatError> {
-        self.verify_page(index as usize)?;
-        let bytes = self
-            .page_bytes(index as usize)
-            .ok_or(FormatError::BadPage {
-                page: index,
-                message: "outside the file".into(),
-            })?;
-        Ok(Cow::Borrowed(bytes))
+    fn read_page(&self, index: u32, out: &mut Vec<u8>) -> Result<(), FormatError> {
+        self.read_page_into(index as usize, out)
     }
 }

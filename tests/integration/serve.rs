@@ -851,3 +851,63 @@ fn serve_cli_child() {
     .expect("serve");
     println!("{}", report.json);
 }
+
+/// A served file cut short under the server (another process truncating
+/// it) costs only the pages past the cut, each reported as unavailable;
+/// the server stays up and serves what it can, and the other scenes. (When
+/// pages were read through a memory map, the first read past the new end
+/// raised SIGBUS and killed the process.)
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_scene_file_cut_short_while_served_costs_only_its_missing_pages() {
+    let dir = scenes_dir("serve-truncated");
+    let server = serve(&dir).await;
+    let addr = server.local_addr();
+    let (mut c, _, _) = Client::open(addr, "island", 64 << 20, false).await;
+    let file = island();
+    let n = file.pages.len();
+    assert!(n >= 6, "{n} pages");
+    // A byte into page 3n/4: that page and the ones after it are gone.
+    let first_lost = n * 3 / 4;
+    let cut = file.header.pages[first_lost].offset + 1;
+    std::fs::OpenOptions::new()
+        .write(true)
+        .open(dir.join("island.ff"))
+        .and_then(|f| f.set_len(cut))
+        .expect("truncate");
+    let wishes: Vec<(u32, f32)> = (1..n as u32).map(|p| (p, 1.0)).collect();
+    c.request(&wishes).await;
+    let (mut arrived, mut lost) = (HashSet::new(), HashSet::new());
+    while arrived.len() + lost.len() < n - 1 {
+        match c.recv().await {
+            In::Page(i, bytes) => {
+                assert_eq!(
+                    bytes, file.pages[i as usize],
+                    "page {i}: not the scene's bytes"
+                );
+                arrived.insert(i as usize);
+                c.ack([i]).await;
+            }
+            In::Control(ServerMessage::PageUnavailable { page, reason }) => {
+                assert!(reason.contains("truncated"), "page {page}: {reason}");
+                lost.insert(page as usize);
+            }
+            other => panic!("unexpected {other:?}"),
+        }
+    }
+    assert!(
+        (1..first_lost).all(|p| arrived.contains(&p)),
+        "pages before the cut all arrive"
+    );
+    assert!(
+        lost.iter().all(|&p| p >= first_lost),
+        "only pages past the cut are lost: {lost:?}"
+    );
+    assert!(
+        !lost.is_empty(),
+        "some pages past the cut were read after it"
+    );
+    // The server is up, and the other scene is served as before.
+    let (_other, _, page0) = Client::open(addr, "tree", MIN_WINDOW, false).await;
+    assert_eq!(page0, tree().pages[0]);
+    server.shutdown().await.expect("shutdown");
+}

@@ -1,0 +1,194 @@
+//! [`SceneFile`]: a paged file opened for reading, page by page.
+//!
+//! Pages are read with positional reads (`pread`) into memory the reader
+//! owns, never through a memory map: a file that another process truncates
+//! or overwrites while it is served then yields a short read or a page that
+//! fails its checks, reported as an error, where a map would raise SIGBUS
+//! and take the whole process down. The header and its directory are read
+//! once, at open.
+
+use std::fs::File;
+use std::path::{Path, PathBuf};
+
+use farfield_protocol::FormatError;
+use farfield_protocol::file::{FileHeader, HierarchyKind};
+use farfield_protocol::hierarchy::Hierarchy;
+use farfield_protocol::page::Page;
+
+use crate::StoreError;
+
+/// How much of a file is read first to find its header's length.
+const HEADER_PROBE_BYTES: u64 = 64 << 10;
+
+/// A paged file opened for reading.
+#[derive(Debug)]
+pub struct SceneFile {
+    pub path: PathBuf,
+    pub header: FileHeader,
+    /// The header as stored (fixed part, directory, checksum).
+    header_bytes: Vec<u8>,
+    file: File,
+    /// Bytes of the file when it was opened.
+    len: u64,
+}
+
+impl SceneFile {
+    /// Opens `path` and reads and checks its header (pages are verified
+    /// when read).
+    pub fn open(path: &Path) -> Result<Self, StoreError> {
+        let io = |error| StoreError::Io {
+            path: path.to_owned(),
+            error,
+        };
+        let format = |error| StoreError::Format {
+            path: path.to_owned(),
+            error,
+        };
+        let file = File::open(path).map_err(io)?;
+        let len = file.metadata().map_err(io)?.len();
+        let mut header_bytes = vec![0; len.min(HEADER_PROBE_BYTES) as usize];
+        read_exact_at(&file, &mut header_bytes, 0).map_err(io)?;
+        let header = match FileHeader::decode(&header_bytes) {
+            // A directory longer than the probe: read all of it (it cannot
+            // be longer than the file, or the file is truncated).
+            Err(FormatError::Truncated {
+                what: "header",
+                needed,
+                ..
+            }) if needed <= len => {
+                header_bytes = vec![0; needed as usize];
+                read_exact_at(&file, &mut header_bytes, 0).map_err(io)?;
+                FileHeader::decode(&header_bytes).map_err(format)?
+            }
+            decoded => decoded.map_err(format)?,
+        };
+        header_bytes.truncate(FileHeader::encoded_len(header.pages.len()));
+        if header.file_len() > len {
+            return Err(format(FormatError::Truncated {
+                what: "file",
+                needed: header.file_len(),
+                have: len,
+            }));
+        }
+        Ok(Self {
+            path: path.to_owned(),
+            header,
+            header_bytes,
+            file,
+            len,
+        })
+    }
+
+    /// The file's header bytes as stored (fixed part, directory and CRC),
+    /// which the memory server sends verbatim so clients decode exactly
+    /// what is on disk.
+    pub fn header_bytes(&self) -> &[u8] {
+        &self.header_bytes
+    }
+
+    /// Appends page `index`'s stored bytes to `out` after checking its
+    /// checksum, its header and its agreement with the directory; on an
+    /// error `out` is as it was. A file cut short under the reader is a
+    /// truncated page, not a fault.
+    pub fn read_page_into(&self, index: usize, out: &mut Vec<u8>) -> Result<(), FormatError> {
+        let e = *self.header.pages.get(index).ok_or(FormatError::BadPage {
+            page: index as u32,
+            message: "outside the file".into(),
+        })?;
+        let start = out.len();
+        out.resize(start + e.length as usize, 0);
+        let read = read_exact_at(&self.file, &mut out[start..], e.offset)
+            .map_err(|error| match error.kind() {
+                std::io::ErrorKind::UnexpectedEof => FormatError::Truncated {
+                    what: "page",
+                    needed: e.offset + u64::from(e.length),
+                    have: self.file.metadata().map_or(0, |m| m.len()),
+                },
+                _ => FormatError::BadPage {
+                    page: index as u32,
+                    message: format!("cannot be read: {error}"),
+                },
+            })
+            .and_then(|()| self.verify(index, &out[start..]));
+        if read.is_err() {
+            out.truncate(start);
+        }
+        read
+    }
+
+    /// Checks page `index`'s checksum and header.
+    pub fn verify_page(&self, index: usize) -> Result<(), FormatError> {
+        self.read_page_into(index, &mut Vec::new())
+    }
+
+    /// Checks `bytes`, read for page `index`.
+    fn verify(&self, index: usize, bytes: &[u8]) -> Result<(), FormatError> {
+        let page = match self.header.kind {
+            HierarchyKind::Spheres => Page::parse(bytes, index as u32, self.header.node_bytes)?,
+            HierarchyKind::Cubes => {
+                Page::parse_with_payload(bytes, index as u32, self.header.node_bytes)?
+            }
+        };
+        if page.header.first_node != self.header.pages[index].first_node {
+            return Err(FormatError::BadPage {
+                page: index as u32,
+                message: "disagrees with the directory".into(),
+            });
+        }
+        Ok(())
+    }
+
+    /// Indices of pages that fail verification, with the reason.
+    pub fn corrupt_pages(&self) -> Vec<(usize, FormatError)> {
+        let mut buffer = Vec::new();
+        (0..self.header.pages.len())
+            .filter_map(|i| {
+                buffer.clear();
+                self.read_page_into(i, &mut buffer).err().map(|e| (i, e))
+            })
+            .collect()
+    }
+
+    /// Bytes of the whole file when it was opened.
+    pub fn len(&self) -> u64 {
+        self.len
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.len == 0
+    }
+
+    /// Every page made resident in a fresh hierarchy; corrupt pages are
+    /// reported, not loaded.
+    pub fn load_all(&self) -> Result<Hierarchy, FormatError> {
+        let mut h = Hierarchy::new(self.header.clone())?;
+        let mut buffer = Vec::new();
+        for i in 0..self.header.pages.len() {
+            buffer.clear();
+            self.read_page_into(i, &mut buffer)?;
+            h.insert_page(i as u32, &buffer)?;
+        }
+        Ok(h)
+    }
+}
+
+/// Fills `buf` from `file` at `offset`, whatever the platform.
+#[cfg(unix)]
+fn read_exact_at(file: &File, buf: &mut [u8], offset: u64) -> std::io::Result<()> {
+    std::os::unix::fs::FileExt::read_exact_at(file, buf, offset)
+}
+
+#[cfg(windows)]
+fn read_exact_at(file: &File, mut buf: &mut [u8], mut offset: u64) -> std::io::Result<()> {
+    use std::os::windows::fs::FileExt;
+    while !buf.is_empty() {
+        match file.seek_read(buf, offset)? {
+            0 => return Err(std::io::ErrorKind::UnexpectedEof.into()),
+            n => {
+                buf = &mut buf[n..];
+                offset += n as u64;
+            }
+        }
+    }
+    Ok(())
+}
