@@ -87,6 +87,8 @@ pub struct Schedule {
     in_flight_bytes: u64,
     window: u64,
     cancelled: HashSet<u32>,
+    /// The scene's page count: the bound of every set above.
+    pages: u32,
     allow_push: bool,
     push: BinaryHeap<Queued>,
     push_seen: HashSet<u32>,
@@ -94,9 +96,12 @@ pub struct Schedule {
 
 impl Schedule {
     /// A schedule for a client that asked for `window` bytes in flight
-    /// (clamped to [`MIN_IN_FLIGHT_BYTES`, `MAX_IN_FLIGHT_BYTES`]).
-    pub fn new(window: u64, allow_push: bool) -> Self {
+    /// (clamped to [`MIN_IN_FLIGHT_BYTES`, `MAX_IN_FLIGHT_BYTES`]) of a
+    /// scene of `pages` pages: no set it keeps holds a page past that, so a
+    /// client naming arbitrary pages cannot grow it.
+    pub fn new(window: u64, allow_push: bool, pages: u32) -> Self {
         Self {
+            pages,
             wishes: HashMap::new(),
             heap: BinaryHeap::new(),
             seq: 0,
@@ -179,6 +184,9 @@ impl Schedule {
     /// Drops a wish; returns whether one was queued. A cancelled page is
     /// never pushed until asked for again.
     pub fn cancel(&mut self, page: u32) -> bool {
+        if page >= self.pages {
+            return false;
+        }
         self.cancelled.insert(page);
         self.wishes.remove(&page).is_some()
     }
@@ -297,7 +305,7 @@ mod tests {
     #[test]
     fn highest_priority_first_ties_in_order_and_updates_in_place() {
         let now = Instant::now();
-        let mut s = Schedule::new(1 << 20, false);
+        let mut s = Schedule::new(1 << 20, false, 1000);
         assert!(s.request(1, 1.0, now));
         assert!(s.request(2, 5.0, now));
         assert!(s.request(3, 1.0, now));
@@ -311,7 +319,7 @@ mod tests {
     #[test]
     fn cancel_removes_and_blocks_pushes() {
         let now = Instant::now();
-        let mut s = Schedule::new(1 << 20, true);
+        let mut s = Schedule::new(1 << 20, true, 1000);
         s.request(1, 1.0, now);
         s.request(2, 2.0, now);
         assert!(s.cancel(2));
@@ -323,7 +331,7 @@ mod tests {
     #[test]
     fn window_caps_bytes_in_flight_and_acks_reopen_it() {
         let now = Instant::now();
-        let mut s = Schedule::new(0, false);
+        let mut s = Schedule::new(0, false, 1000);
         assert_eq!(s.window(), MIN_IN_FLIGHT_BYTES);
         for p in 0..100 {
             s.request(p, 0.0, now);
@@ -341,7 +349,7 @@ mod tests {
     #[test]
     fn resend_only_after_acknowledgement() {
         let now = Instant::now();
-        let mut s = Schedule::new(1 << 20, false);
+        let mut s = Schedule::new(1 << 20, false, 1000);
         s.request(5, 1.0, now);
         assert_eq!(drain(&mut s), vec![5]);
         assert!(!s.request(5, 2.0, now), "still in flight: ignored");
@@ -354,10 +362,10 @@ mod tests {
     #[test]
     fn pushes_only_when_allowed_idle_and_new() {
         let now = Instant::now();
-        let mut s = Schedule::new(1 << 20, false);
+        let mut s = Schedule::new(1 << 20, false, 1000);
         s.offer_push(1..3, 1.0);
         assert!(drain(&mut s).is_empty(), "pushes not allowed");
-        let mut s = Schedule::new(1 << 20, true);
+        let mut s = Schedule::new(1 << 20, true, 1000);
         s.request(1, 1.0, now);
         s.offer_push(1..4, 1.0);
         s.offer_push(10..11, 5.0);
@@ -376,7 +384,7 @@ mod tests {
     #[test]
     fn reprioritising_forever_keeps_the_heap_bounded() {
         let now = Instant::now();
-        let mut s = Schedule::new(1 << 20, false);
+        let mut s = Schedule::new(1 << 20, false, 1000);
         for i in 0..10_000 {
             s.request(i % 3, i as f32, now);
         }
@@ -387,12 +395,24 @@ mod tests {
     #[test]
     fn unsend_forgets_a_page_that_failed() {
         let now = Instant::now();
-        let mut s = Schedule::new(1 << 20, false);
+        let mut s = Schedule::new(1 << 20, false, 1000);
         s.request(3, 1.0, now);
         assert_eq!(drain(&mut s), vec![3]);
         s.unsend(3);
         assert!(!s.was_sent(3));
         assert_eq!(s.in_flight_bytes(), 0);
         assert!(s.request(3, 1.0, now));
+    }
+
+    #[test]
+    fn cancels_of_pages_the_scene_lacks_are_not_kept() {
+        let mut s = Schedule::new(1 << 20, false, 10);
+        for page in (10..100_000).chain([u32::MAX]) {
+            assert!(!s.cancel(page));
+        }
+        assert!(s.cancelled.is_empty(), "{} kept", s.cancelled.len());
+        assert!(s.request(3, 1.0, Instant::now()));
+        assert!(s.cancel(3), "a page of the scene is still cancelled");
+        assert_eq!(s.cancelled.len(), 1);
     }
 }

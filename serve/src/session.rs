@@ -39,6 +39,13 @@ const CLOSE_GRACE: Duration = Duration::from_secs(2);
 const CLOSE_GOING_AWAY: u16 = 1001;
 const CLOSE_PROTOCOL: u16 = 1002;
 const CLOSE_UNSUPPORTED: u16 = 1003;
+const CLOSE_POLICY: u16 = 1008;
+
+/// Most bytes of control replies (errors) a session keeps waiting for a
+/// client that does not read them; past it the session is closed
+/// ([`CLOSE_POLICY`]), so a client that asks and never reads costs a
+/// bounded amount.
+pub const MAX_OUTBOX_BYTES: usize = 1 << 20;
 
 type Sink = SplitSink<WebSocket, Message>;
 type Stream = SplitStream<WebSocket>;
@@ -86,8 +93,11 @@ struct Shared {
 #[derive(Debug)]
 struct State {
     schedule: Schedule,
-    /// Control frames to send before any page.
+    /// Control frames to send before any page, and their bytes: at most
+    /// `outbox_limit`, [`MAX_OUTBOX_BYTES`] beyond the hello and header.
     outbox: VecDeque<Bytes>,
+    outbox_bytes: usize,
+    outbox_limit: usize,
     /// Set by the reader when the session must end.
     ending: Option<End>,
     stats: Stats,
@@ -215,16 +225,20 @@ pub(crate) async fn run(
     let header = scene.source.header_bytes();
     tracing::info!(%peer, scene = %scene.name, window, allow_push, "client connected");
 
+    let outbox = VecDeque::from([
+        Bytes::from(encode_control(&ServerMessage::Hello {
+            protocol_version: PROTOCOL_VERSION,
+            server: format!("farfield-server {}", env!("CARGO_PKG_VERSION")),
+        })),
+        Bytes::from(encode_header_frame(header)),
+    ]);
+    let first_bytes: usize = outbox.iter().map(Bytes::len).sum();
     let shared = Shared {
         state: Mutex::new(State {
-            schedule: Schedule::new(window, allow_push),
-            outbox: VecDeque::from([
-                Bytes::from(encode_control(&ServerMessage::Hello {
-                    protocol_version: PROTOCOL_VERSION,
-                    server: format!("farfield-server {}", env!("CARGO_PKG_VERSION")),
-                })),
-                Bytes::from(encode_header_frame(header)),
-            ]),
+            schedule: Schedule::new(window, allow_push, scene.page_count()),
+            outbox,
+            outbox_bytes: first_bytes,
+            outbox_limit: first_bytes + MAX_OUTBOX_BYTES,
             ending: None,
             stats: Stats::default(),
         }),
@@ -375,26 +389,37 @@ async fn read_loop(
                 return End::Malformed(code, reason);
             }
         };
-        let applied = decode(&frame).and_then(|m| apply(m, shared, scene, app));
-        if let Err(reason) = applied {
-            Metrics::add(&app.metrics.malformed_frames, 1);
-            return End::Malformed(CLOSE_PROTOCOL, reason);
+        let message = match decode(&frame) {
+            Ok(message) => message,
+            Err(reason) => {
+                Metrics::add(&app.metrics.malformed_frames, 1);
+                return End::Malformed(CLOSE_PROTOCOL, reason);
+            }
+        };
+        if let Err(end) = apply(message, shared, scene, app) {
+            if matches!(end, End::Malformed(CLOSE_PROTOCOL, _)) {
+                Metrics::add(&app.metrics.malformed_frames, 1);
+            }
+            return end;
         }
         shared.wake.notify_one();
     }
 }
 
-/// Applies one client message to the schedule.
+/// Applies one client message to the schedule; an error is how the
+/// session must end.
 fn apply(
     message: ClientMessage,
     shared: &Shared,
     scene: &Arc<ServedScene>,
     app: &AppState,
-) -> Result<(), String> {
+) -> Result<(), End> {
     let now = Instant::now();
     let pages = scene.page_count();
     match message {
-        ClientMessage::Hello { .. } => return Err("Hello sent twice".into()),
+        ClientMessage::Hello { .. } => {
+            return Err(End::Malformed(CLOSE_PROTOCOL, "Hello sent twice".into()));
+        }
         ClientMessage::Request { pages: wishes } => {
             let mut out_of_range = Vec::new();
             let mut added = 0i64;
@@ -429,8 +454,18 @@ fn apply(
                             String::new()
                         }
                     );
-                    st.outbox
-                        .push_back(Bytes::from(encode_control(&error(message, false))));
+                    let reply = Bytes::from(encode_control(&error(message, false)));
+                    if st.outbox_bytes + reply.len() > st.outbox_limit {
+                        return Err(End::Malformed(
+                            CLOSE_POLICY,
+                            format!(
+                                "the client leaves its replies unread ({} KiB of them wait)",
+                                MAX_OUTBOX_BYTES >> 10
+                            ),
+                        ));
+                    }
+                    st.outbox_bytes += reply.len();
+                    st.outbox.push_back(reply);
                 }
             }
             app.metrics.queue_depth.fetch_add(added, Ordering::Relaxed);
@@ -475,6 +510,7 @@ fn next_action(shared: &Shared, scene: &ServedScene, shutting_down: bool) -> Act
         return Action::End(end);
     }
     if let Some(frame) = st.outbox.pop_front() {
+        st.outbox_bytes -= frame.len();
         return Action::Send(frame);
     }
     match st.schedule.next(|p| scene.page_len(p).unwrap_or(0)) {
