@@ -349,36 +349,13 @@ impl Renderer {
 
         let started = Instant::now();
         let frame = output.begin(&gpu.device)?;
-        let [r, g, b] = background.map(|c| f64::from(c) / 255.0);
         let mut encoder = gpu
             .device
             .create_command_encoder(&wgpu::CommandEncoderDescriptor {
                 label: Some("farfield geometry frame"),
             });
         {
-            let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
-                label: Some("farfield geometry"),
-                color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                    view: &frame.color,
-                    depth_slice: None,
-                    resolve_target: None,
-                    ops: wgpu::Operations {
-                        load: wgpu::LoadOp::Clear(wgpu::Color { r, g, b, a: 1.0 }),
-                        store: wgpu::StoreOp::Store,
-                    },
-                })],
-                depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
-                    view: &frame.depth,
-                    depth_ops: Some(wgpu::Operations {
-                        load: wgpu::LoadOp::Clear(0.0),
-                        store: wgpu::StoreOp::Discard,
-                    }),
-                    stencil_ops: None,
-                }),
-                timestamp_writes: None,
-                occlusion_query_set: None,
-                multiview_mask: None,
-            });
+            let mut pass = frame.begin_pass(&mut encoder, "farfield geometry", background);
             pass.set_bind_group(0, &pipes.bind_group, &[]);
             if let (Some((buffer, _)), false) = (&pipes.vertex_buffer, vertices.is_empty()) {
                 pass.set_pipeline(&pipes.triangles);

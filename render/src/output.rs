@@ -34,6 +34,43 @@ pub(crate) struct Frame {
     presented: Option<wgpu::SurfaceTexture>,
 }
 
+impl Frame {
+    /// The one render pass of a frame: color cleared to `background` (sRGB
+    /// bytes), depth cleared to 0, which with reversed Z is infinitely far,
+    /// and discarded after the pass.
+    pub fn begin_pass<'e>(
+        &self,
+        encoder: &'e mut wgpu::CommandEncoder,
+        label: &str,
+        background: [u8; 3],
+    ) -> wgpu::RenderPass<'e> {
+        let [r, g, b] = background.map(|c| f64::from(c) / 255.0);
+        encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+            label: Some(label),
+            color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                view: &self.color,
+                depth_slice: None,
+                resolve_target: None,
+                ops: wgpu::Operations {
+                    load: wgpu::LoadOp::Clear(wgpu::Color { r, g, b, a: 1.0 }),
+                    store: wgpu::StoreOp::Store,
+                },
+            })],
+            depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                view: &self.depth,
+                depth_ops: Some(wgpu::Operations {
+                    load: wgpu::LoadOp::Clear(0.0),
+                    store: wgpu::StoreOp::Discard,
+                }),
+                stencil_ops: None,
+            }),
+            timestamp_writes: None,
+            occlusion_query_set: None,
+            multiview_mask: None,
+        })
+    }
+}
+
 impl SurfaceOutput {
     /// Configures `surface` for `device` at `width` x `height` in `format`.
     pub fn new(

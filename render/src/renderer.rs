@@ -235,7 +235,6 @@ impl Renderer {
 
         let started = Instant::now();
         let frame = self.output.begin(&self.gpu.device)?;
-        let [r, g, b] = style.background.map(|c| f64::from(c) / 255.0);
         let mut encoder = self
             .gpu
             .device
@@ -243,30 +242,7 @@ impl Renderer {
                 label: Some("farfield frame"),
             });
         {
-            let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
-                label: Some("farfield splats"),
-                color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                    view: &frame.color,
-                    depth_slice: None,
-                    resolve_target: None,
-                    ops: wgpu::Operations {
-                        load: wgpu::LoadOp::Clear(wgpu::Color { r, g, b, a: 1.0 }),
-                        store: wgpu::StoreOp::Store,
-                    },
-                })],
-                depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
-                    view: &frame.depth,
-                    // Reversed Z: 0 is infinitely far.
-                    depth_ops: Some(wgpu::Operations {
-                        load: wgpu::LoadOp::Clear(0.0),
-                        store: wgpu::StoreOp::Discard,
-                    }),
-                    stencil_ops: None,
-                }),
-                timestamp_writes: None,
-                occlusion_query_set: None,
-                multiview_mask: None,
-            });
+            let mut pass = frame.begin_pass(&mut encoder, "farfield splats", style.background);
             pass.set_pipeline(&self.pipeline);
             pass.set_bind_group(0, &self.bind_group, &[]);
             for (chunk, count) in self.chunks.iter().zip(draws) {

@@ -113,6 +113,33 @@ struct Stats {
     cancelled: u64,
 }
 
+impl State {
+    /// Queues a control reply, or says how the session must end when the
+    /// client has left [`MAX_OUTBOX_BYTES`] of them unread.
+    fn queue_control(&mut self, message: &ServerMessage) -> Result<(), End> {
+        let frame = Bytes::from(encode_control(message));
+        if self.outbox_bytes + frame.len() > self.outbox_limit {
+            return Err(End::Malformed(
+                CLOSE_POLICY,
+                format!(
+                    "the client leaves its replies unread ({} KiB of them wait)",
+                    MAX_OUTBOX_BYTES >> 10
+                ),
+            ));
+        }
+        self.outbox_bytes += frame.len();
+        self.outbox.push_back(frame);
+        Ok(())
+    }
+
+    /// The next control frame to send.
+    fn next_control(&mut self) -> Option<Bytes> {
+        let frame = self.outbox.pop_front()?;
+        self.outbox_bytes = self.outbox_bytes.saturating_sub(frame.len());
+        Some(frame)
+    }
+}
+
 impl Shared {
     fn lock(&self) -> MutexGuard<'_, State> {
         self.state.lock().unwrap_or_else(|e| e.into_inner())
@@ -454,18 +481,7 @@ fn apply(
                             String::new()
                         }
                     );
-                    let reply = Bytes::from(encode_control(&error(message, false)));
-                    if st.outbox_bytes + reply.len() > st.outbox_limit {
-                        return Err(End::Malformed(
-                            CLOSE_POLICY,
-                            format!(
-                                "the client leaves its replies unread ({} KiB of them wait)",
-                                MAX_OUTBOX_BYTES >> 10
-                            ),
-                        ));
-                    }
-                    st.outbox_bytes += reply.len();
-                    st.outbox.push_back(reply);
+                    st.queue_control(&error(message, false))?;
                 }
             }
             app.metrics.queue_depth.fetch_add(added, Ordering::Relaxed);
@@ -509,8 +525,7 @@ fn next_action(shared: &Shared, scene: &ServedScene, shutting_down: bool) -> Act
     if let Some(end) = st.ending.clone() {
         return Action::End(end);
     }
-    if let Some(frame) = st.outbox.pop_front() {
-        st.outbox_bytes -= frame.len();
+    if let Some(frame) = st.next_control() {
         return Action::Send(frame);
     }
     match st.schedule.next(|p| scene.page_len(p).unwrap_or(0)) {
