@@ -11,8 +11,8 @@ use std::sync::atomic::Ordering;
 use std::sync::{Arc, Mutex};
 
 use axum::body::Bytes;
-use farfield_protocol::FormatError;
 use farfield_protocol::messages::FrameKind;
+use farfield_store::PageError;
 use lru::LruCache;
 
 use super::catalog::ServedScene;
@@ -89,14 +89,19 @@ impl PageCache {
     }
 
     /// Reads, verifies and caches a page that was not found in the cache.
+    /// A scene whose file changed is retired here, by whichever read finds
+    /// it first.
     pub fn read_through(
         &self,
         scene: &ServedScene,
         page: u32,
         metrics: &Metrics,
-    ) -> Result<Bytes, FormatError> {
-        let frame = read_verified(scene, page).inspect_err(|_| {
-            Metrics::add(&metrics.corrupt_pages, 1);
+    ) -> Result<Bytes, PageError> {
+        let frame = read_verified(scene, page).inspect_err(|e| match e {
+            PageError::Format(_) => Metrics::add(&metrics.corrupt_pages, 1),
+            PageError::Changed(why) => {
+                scene.retire(&format!("its file changed on disk: {why}"));
+            }
         })?;
         self.insert((scene.id, page), frame.clone(), metrics);
         Ok(frame)
@@ -116,7 +121,7 @@ impl PageCache {
         scene: &Arc<ServedScene>,
         page: u32,
         metrics: &Arc<Metrics>,
-    ) -> Result<Bytes, FormatError> {
+    ) -> Result<Bytes, PageError> {
         Metrics::add(&metrics.cache_misses, 1);
         let (cache, scene2, metrics2) = (self.clone(), scene.clone(), metrics.clone());
         match tokio::task::spawn_blocking(move || cache.read_through(&scene2, page, &metrics2))
@@ -131,7 +136,7 @@ impl PageCache {
 
 /// The page's stored bytes as a frame, after checking its checksum, header
 /// and agreement with the directory.
-fn read_verified(scene: &ServedScene, page: u32) -> Result<Bytes, FormatError> {
+fn read_verified(scene: &ServedScene, page: u32) -> Result<Bytes, PageError> {
     let len = scene.page_len(page).unwrap_or(0) as usize;
     let mut frame = Vec::with_capacity(len + 1);
     frame.push(FrameKind::Page as u8);

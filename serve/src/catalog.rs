@@ -1,20 +1,25 @@
 //! The scenes a server holds: one [`PageSource`] each (a [`SceneFile`],
-//! read by positional reads, for now), found by scanning a folder for `*.ff` or given
-//! as (name, path) pairs.
+//! read by positional reads, for now), found by scanning a folder for
+//! `*.ff` or given as (name, path) pairs, and kept current while the server
+//! runs by [`crate::rescan`].
 //!
 //! A scene also precomputes, per page, the range of pages that hold the
-//! children of its nodes, which is what prefetch reads ahead.
+//! children of its nodes, which is what prefetch reads ahead. A scene whose
+//! file changed under it is *retired*: it leaves the listing at once, and
+//! its open sessions are told through [`ServedScene::retired`].
 
-use std::collections::HashMap;
+use std::collections::BTreeMap;
 use std::ops::Range;
 use std::path::{Path, PathBuf};
-use std::sync::Arc;
+use std::sync::atomic::{AtomicU32, Ordering};
+use std::sync::{Arc, RwLock};
 
 use serde_json::{Value, json};
+use tokio::sync::watch;
 
 use super::ServeError;
 use farfield_protocol::file::FileHeader;
-use farfield_store::{PageSource, SceneFile, StoreError};
+use farfield_store::{FileStamp, PageSource, SceneFile, StoreError};
 
 /// The extension of the paged files a scenes folder is scanned for.
 pub const SCENE_EXTENSION: &str = "ff";
@@ -22,13 +27,18 @@ pub const SCENE_EXTENSION: &str = "ff";
 /// One scene being served.
 #[derive(Debug)]
 pub struct ServedScene {
-    /// Index in the catalog; part of the page cache key.
+    /// Unique to this version of this scene; part of the page cache key.
     pub id: u32,
     pub name: String,
+    /// The file it was opened from, and that file's stamp then.
+    pub path: PathBuf,
+    pub stamp: FileStamp,
     /// Where its header and pages come from.
     pub source: Box<dyn PageSource>,
     /// Per page: the pages holding children of its nodes (never itself).
     children: Vec<Range<u32>>,
+    /// Why it was taken out of service, once it was.
+    retired: watch::Sender<Option<Arc<str>>>,
 }
 
 impl ServedScene {
@@ -38,9 +48,54 @@ impl ServedScene {
         Ok(Self {
             id,
             name: name.to_owned(),
+            path: path.to_owned(),
+            stamp: source.stamp(),
             source: Box::new(source),
             children,
+            retired: watch::Sender::new(None),
         })
+    }
+
+    /// Takes the scene out of service, once: new sessions no longer find
+    /// it, and open ones are told `reason` and closed.
+    pub fn retire(&self, reason: &str) {
+        let newly = self.retired.send_if_modified(|r| {
+            if r.is_some() {
+                return false;
+            }
+            *r = Some(reason.into());
+            true
+        });
+        if newly {
+            tracing::warn!(
+                scene = %self.name,
+                path = %self.path.display(),
+                "scene taken out of service: {reason}"
+            );
+        }
+    }
+
+    pub fn is_retired(&self) -> bool {
+        self.retired.borrow().is_some()
+    }
+
+    /// Why it was taken out of service, if it was.
+    pub fn retired_reason(&self) -> Option<String> {
+        self.retired.borrow().as_deref().map(str::to_owned)
+    }
+
+    /// Resolves with the reason once the scene is taken out of service.
+    pub async fn retired(&self) -> Arc<str> {
+        let mut rx = self.retired.subscribe();
+        loop {
+            if let Some(reason) = rx.borrow_and_update().clone() {
+                return reason;
+            }
+            // The sender lives as long as `self`, so this cannot fail.
+            if rx.changed().await.is_err() {
+                std::future::pending::<()>().await;
+            }
+        }
     }
 
     pub fn page_count(&self) -> u32 {
@@ -122,11 +177,14 @@ fn child_ranges(h: &FileHeader) -> Vec<Range<u32>> {
         .collect()
 }
 
-/// Every scene, by id and by name.
+/// The scenes being served, by name: changed while the server runs by the
+/// folder watcher ([`crate::rescan`]), read by every request.
 #[derive(Debug, Default)]
 pub struct Catalog {
-    scenes: Vec<Arc<ServedScene>>,
-    by_name: HashMap<String, usize>,
+    scenes: RwLock<BTreeMap<String, Arc<ServedScene>>>,
+    /// Ids are never reused, so a scene's new version never meets its old
+    /// one's pages in the cache.
+    next_id: AtomicU32,
 }
 
 impl Catalog {
@@ -134,49 +192,77 @@ impl Catalog {
     /// skipped so one bad file never takes the others down. Two scenes with
     /// one name are an error: a client could not tell them apart.
     pub fn open(entries: &[(String, PathBuf)]) -> Result<Self, ServeError> {
-        let mut catalog = Self::default();
+        let catalog = Self::default();
+        let mut seen = std::collections::HashSet::new();
         for (name, path) in entries {
-            if catalog.by_name.contains_key(name) {
+            if !seen.insert(name) {
                 return Err(ServeError::DuplicateScene(name.clone()));
             }
-            let id = u32::try_from(catalog.scenes.len()).unwrap_or(u32::MAX);
-            match ServedScene::open(id, name, path) {
-                Ok(scene) => {
-                    tracing::info!(
-                        scene = %name,
-                        path = %path.display(),
-                        pages = scene.page_count(),
-                        nodes = scene.source.header().nodes,
-                        "serving scene"
-                    );
-                    catalog.by_name.insert(name.clone(), catalog.scenes.len());
-                    catalog.scenes.push(Arc::new(scene));
-                }
-                Err(e) => tracing::warn!(scene = %name, "skipping scene: {e}"),
+            if let Err(e) = catalog.open_scene(name, path) {
+                tracing::warn!(scene = %name, "skipping scene: {e}");
             }
         }
         Ok(catalog)
     }
 
-    pub fn get(&self, name: &str) -> Option<&Arc<ServedScene>> {
-        self.by_name.get(name).map(|&i| &self.scenes[i])
+    /// Opens `path` as scene `name`, in place of any version served now
+    /// (sessions open on that one finish on it).
+    pub fn open_scene(&self, name: &str, path: &Path) -> Result<Arc<ServedScene>, StoreError> {
+        let id = self.next_id.fetch_add(1, Ordering::Relaxed);
+        let scene = Arc::new(ServedScene::open(id, name, path)?);
+        tracing::info!(
+            scene = %name,
+            path = %path.display(),
+            pages = scene.page_count(),
+            nodes = scene.source.header().nodes,
+            "serving scene"
+        );
+        self.write().insert(name.to_owned(), scene.clone());
+        Ok(scene)
     }
 
-    pub fn by_id(&self, id: u32) -> Option<&Arc<ServedScene>> {
-        self.scenes.get(id as usize)
+    /// Stops listing `scene` (if it is still the version listed under its
+    /// name).
+    pub fn remove(&self, scene: &ServedScene) {
+        let mut scenes = self.write();
+        if scenes.get(&scene.name).is_some_and(|s| s.id == scene.id) {
+            scenes.remove(&scene.name);
+        }
     }
 
-    /// Scenes in name order.
-    pub fn iter(&self) -> impl Iterator<Item = &Arc<ServedScene>> {
-        self.scenes.iter()
+    fn read(&self) -> std::sync::RwLockReadGuard<'_, BTreeMap<String, Arc<ServedScene>>> {
+        self.scenes.read().unwrap_or_else(|e| e.into_inner())
+    }
+
+    fn write(&self) -> std::sync::RwLockWriteGuard<'_, BTreeMap<String, Arc<ServedScene>>> {
+        self.scenes.write().unwrap_or_else(|e| e.into_inner())
+    }
+
+    /// The scene served under `name` now; never one taken out of service.
+    pub fn get(&self, name: &str) -> Option<Arc<ServedScene>> {
+        self.read().get(name).filter(|s| !s.is_retired()).cloned()
+    }
+
+    /// Every scene in service, in name order.
+    pub fn list(&self) -> Vec<Arc<ServedScene>> {
+        self.read()
+            .values()
+            .filter(|s| !s.is_retired())
+            .cloned()
+            .collect()
+    }
+
+    /// Every scene listed, in service or not yet removed after it left it.
+    pub(crate) fn all(&self) -> Vec<Arc<ServedScene>> {
+        self.read().values().cloned().collect()
     }
 
     pub fn len(&self) -> usize {
-        self.scenes.len()
+        self.list().len()
     }
 
     pub fn is_empty(&self) -> bool {
-        self.scenes.is_empty()
+        self.len() == 0
     }
 }
 

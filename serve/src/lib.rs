@@ -2,13 +2,14 @@
 //! to websocket clients (the 1995 report's section 6.2, with QSplat's
 //! breadth-first pages).
 //!
-//! [`start`] opens every `*.ff` file in a folder (or [`start_scenes`] a
-//! list), binds, and serves in the background of the current tokio runtime;
+//! [`start`] opens every `*.ff` file in a folder (or a list of files),
+//! binds, and serves in the background of the current tokio runtime;
 //! the [`RunningServer`] it returns gives the bound address, metrics, and a
 //! graceful [`RunningServer::shutdown`]. The CLI's `serve` subcommand and
 //! the client's demo both embed it this way.
 //!
 //! - [`catalog`]: the scenes and their child-page ranges;
+//! - [`rescan`]: the catalog kept in step with the disk while serving;
 //! - [`cache`]: the byte-bounded LRU of verified page frames;
 //! - [`prefetch`]: read-ahead of child pages on a small thread pool;
 //! - [`schedule`]: one connection's priority queue and in-flight window;
@@ -20,6 +21,7 @@ pub mod cache;
 pub mod catalog;
 pub mod metrics;
 pub mod prefetch;
+pub mod rescan;
 mod routes;
 pub mod schedule;
 mod session;
@@ -38,6 +40,7 @@ use self::cache::PageCache;
 use self::catalog::Catalog;
 use self::metrics::{Metrics, MetricsSnapshot};
 use self::prefetch::Prefetcher;
+use self::rescan::{DEFAULT_RESCAN_INTERVAL, Origin, Rescanner};
 
 /// The page cache's default bound.
 pub const DEFAULT_CACHE_BYTES: u64 = 256 << 20;
@@ -70,21 +73,35 @@ pub enum ServeError {
 /// What to serve and where.
 #[derive(Debug, Clone)]
 pub struct ServerConfig {
-    /// Every `*.ff` file directly in this folder is a scene named by its stem.
-    pub scenes_dir: PathBuf,
+    /// A folder (every `*.ff` file directly in it is a scene named by its
+    /// stem) or a list of files.
+    pub scenes: Origin,
     /// Port 0 picks a free port; [`RunningServer::local_addr`] says which.
     pub listen: SocketAddr,
     /// Bound on the shared page cache, in bytes.
     pub cache_bytes: u64,
+    /// How often the scenes are looked at again for files added, replaced,
+    /// changed or deleted; zero never looks again.
+    pub rescan_interval: Duration,
 }
 
 impl ServerConfig {
-    /// A config with the default cache size.
+    /// Serves a folder, with the default cache size and rescan interval.
     pub fn new(scenes_dir: impl Into<PathBuf>, listen: SocketAddr) -> Self {
+        Self::with_origin(Origin::Folder(scenes_dir.into()), listen)
+    }
+
+    /// Serves the given (name, path) pairs.
+    pub fn files(scenes: Vec<(String, PathBuf)>, listen: SocketAddr) -> Self {
+        Self::with_origin(Origin::Files(scenes), listen)
+    }
+
+    fn with_origin(scenes: Origin, listen: SocketAddr) -> Self {
         Self {
-            scenes_dir: scenes_dir.into(),
+            scenes,
             listen,
             cache_bytes: DEFAULT_CACHE_BYTES,
+            rescan_interval: DEFAULT_RESCAN_INTERVAL,
         }
     }
 }
@@ -92,7 +109,7 @@ impl ServerConfig {
 /// Everything the handlers share.
 #[derive(Debug)]
 pub(crate) struct AppState {
-    pub catalog: Catalog,
+    pub catalog: Arc<Catalog>,
     pub cache: Arc<PageCache>,
     pub metrics: Arc<Metrics>,
     pub prefetch: Prefetcher,
@@ -123,20 +140,20 @@ impl ShutdownHandle {
     }
 }
 
-/// Serves every `*.ff` file in `config.scenes_dir`.
+/// Serves the scenes `config` names. Files that fail to open are logged
+/// and skipped (and served once they can be, when rescanning).
 pub async fn start(config: ServerConfig) -> Result<RunningServer, ServeError> {
-    let scenes = catalog::scan_dir(&config.scenes_dir)?;
-    start_scenes(scenes, config.listen, config.cache_bytes).await
-}
-
-/// Serves the given (name, path) pairs. Files that fail to open are logged
-/// and skipped.
-pub async fn start_scenes(
-    scenes: Vec<(String, PathBuf)>,
-    listen: SocketAddr,
-    cache_bytes: u64,
-) -> Result<RunningServer, ServeError> {
-    let catalog = Catalog::open(&scenes)?;
+    let ServerConfig {
+        scenes: origin,
+        listen,
+        cache_bytes,
+        rescan_interval,
+    } = config;
+    let scenes = match &origin {
+        Origin::Folder(dir) => catalog::scan_dir(dir)?,
+        Origin::Files(files) => files.clone(),
+    };
+    let catalog = Arc::new(Catalog::open(&scenes)?);
     if catalog.is_empty() {
         tracing::warn!("no scenes to serve");
     }
@@ -185,6 +202,13 @@ pub async fn start_scenes(
         let _ = signal.wait_for(|&stop| stop).await;
     });
     let task = tokio::spawn(async move { server.await });
+    if !rescan_interval.is_zero() {
+        tokio::spawn(rescan_loop(
+            Rescanner::new(origin),
+            state.clone(),
+            rescan_interval,
+        ));
+    }
     tracing::info!(%local_addr, scenes = state.catalog.len(), cache_bytes, "listening");
     Ok(RunningServer {
         local_addr,
@@ -192,6 +216,32 @@ pub async fn start_scenes(
         shutdown_tx: Arc::new(shutdown_tx),
         task: Some(task),
     })
+}
+
+/// Rescans every `interval` until the server shuts down; each pass runs on
+/// the blocking pool (it stats and opens files).
+async fn rescan_loop(rescanner: Rescanner, state: Arc<AppState>, interval: Duration) {
+    let rescanner = Arc::new(rescanner);
+    let mut shutdown = state.shutdown.clone();
+    let mut tick = tokio::time::interval(interval);
+    tick.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
+    tick.tick().await;
+    loop {
+        tokio::select! {
+            _ = tick.tick() => {}
+            _ = shutdown.wait_for(|&stop| stop) => return,
+        }
+        let (rescanner, state) = (rescanner.clone(), state.clone());
+        let pass = tokio::task::spawn_blocking(move || {
+            rescanner.pass(&state.catalog);
+            let scenes = state.catalog.len() as u64;
+            state.metrics.scenes.store(scenes, Ordering::Relaxed);
+        });
+        if pass.await.is_err() {
+            // The runtime is shutting down.
+            return;
+        }
+    }
 }
 
 impl RunningServer {
@@ -212,7 +262,12 @@ impl RunningServer {
 
     /// Names of the scenes being served.
     pub fn scenes(&self) -> Vec<String> {
-        self.state.catalog.iter().map(|s| s.name.clone()).collect()
+        self.state
+            .catalog
+            .list()
+            .iter()
+            .map(|s| s.name.clone())
+            .collect()
     }
 
     /// A handle that starts the shutdown from elsewhere; await

@@ -91,7 +91,8 @@ fn worker(rx: &Mutex<Receiver<Job>>, cache: &PageCache, metrics: &Metrics, pendi
         if !cache.contains(key) {
             match cache.read_through(&scene, page, metrics) {
                 Ok(_) => Metrics::add(&metrics.prefetch_loads, 1),
-                Err(e) => tracing::warn!(scene = %scene.name, "read-ahead: {e}"),
+                // Told to the session that asks for the page, if one does.
+                Err(e) => tracing::debug!(scene = %scene.name, "read-ahead: {e}"),
             }
         }
         lock(pending).remove(&key);

@@ -59,7 +59,7 @@ async fn metrics(State(app): State<Arc<AppState>>) -> Response {
 
 async fn list(State(app): State<Arc<AppState>>) -> Json<Value> {
     Json(Value::Array(
-        app.catalog.iter().map(|s| s.summary()).collect(),
+        app.catalog.list().iter().map(|s| s.summary()).collect(),
     ))
 }
 
@@ -76,7 +76,7 @@ async fn stream(
     ConnectInfo(peer): ConnectInfo<SocketAddr>,
     ws: Result<WebSocketUpgrade, WebSocketUpgradeRejection>,
 ) -> Response {
-    let Some(scene) = app.catalog.get(&name).cloned() else {
+    let Some(scene) = app.catalog.get(&name) else {
         return unknown_scene(&name);
     };
     let ws = match ws {

@@ -21,6 +21,7 @@ use axum::body::Bytes;
 use axum::extract::ws::{CloseFrame, Message, WebSocket};
 use farfield_protocol::codec::{decode_control, encode_control, encode_header_frame, frame_kind};
 use farfield_protocol::messages::{ClientMessage, FrameKind, PROTOCOL_VERSION, ServerMessage};
+use farfield_store::PageError;
 use futures_util::stream::{SplitSink, SplitStream};
 use futures_util::{SinkExt, StreamExt};
 use tokio::sync::{Notify, watch};
@@ -59,6 +60,9 @@ enum End {
     Malformed(u16, String),
     /// A fatal error already sent; close with this reason.
     Fatal(String),
+    /// The scene was taken out of service (its file changed); the client is
+    /// told why, and that the server goes on.
+    Retired(String),
     ShuttingDown,
 }
 
@@ -244,7 +248,7 @@ pub(crate) async fn run(
     let (window, allow_push) = match hello(first, &app) {
         Ok(h) => h,
         Err(end) => {
-            finish_early(&mut sink, &end).await;
+            finish(&mut sink, &end).await;
             tracing::info!(%peer, scene = %scene.name, "client refused: {}", describe(&end));
             return;
         }
@@ -320,7 +324,7 @@ fn describe(end: &End) -> String {
     match end {
         End::ClientGone => "closed by the client".into(),
         End::Malformed(_, reason) => format!("malformed frame: {reason}"),
-        End::Fatal(reason) => reason.clone(),
+        End::Fatal(reason) | End::Retired(reason) => reason.clone(),
         End::ShuttingDown => "server shutting down".into(),
     }
 }
@@ -383,16 +387,22 @@ fn message_name(m: &ClientMessage) -> &'static str {
     }
 }
 
-/// Ends a session that never got past the hello.
-async fn finish_early(sink: &mut Sink, end: &End) {
+/// Says goodbye as `end` requires: a close frame with its code and reason,
+/// after a fatal error message where there is one.
+async fn finish(sink: &mut Sink, end: &End) {
     match end {
         End::ClientGone => {
+            // Flushes the close reply the websocket layer queued.
             let _ = tokio::time::timeout(CLOSE_GRACE, sink.close()).await;
         }
         End::Malformed(code, reason) => send_briefly(sink, close_frame(*code, reason)).await,
         End::Fatal(reason) => {
             send_briefly(sink, control(&error(reason.clone(), true))).await;
             send_briefly(sink, close_frame(CLOSE_PROTOCOL, reason)).await;
+        }
+        End::Retired(reason) => {
+            send_briefly(sink, control(&error(reason.clone(), true))).await;
+            send_briefly(sink, close_frame(CLOSE_GOING_AWAY, reason)).await;
         }
         End::ShuttingDown => {
             send_briefly(sink, close_frame(CLOSE_GOING_AWAY, "server shutting down")).await;
@@ -525,6 +535,9 @@ fn next_action(shared: &Shared, scene: &ServedScene, shutting_down: bool) -> Act
     if let Some(end) = st.ending.clone() {
         return Action::End(end);
     }
+    if scene.is_retired() {
+        return Action::End(retired(scene));
+    }
     if let Some(frame) = st.next_control() {
         return Action::Send(frame);
     }
@@ -532,6 +545,15 @@ fn next_action(shared: &Shared, scene: &ServedScene, shutting_down: bool) -> Act
         Some(next) => Action::Page(next),
         None => Action::Wait,
     }
+}
+
+/// How a session on a retired scene ends.
+fn retired(scene: &ServedScene) -> End {
+    End::Retired(format!(
+        "scene {:?} was taken out of service: {}",
+        scene.name,
+        scene.retired_reason().unwrap_or_default()
+    ))
 }
 
 /// Sends what the schedule allows until the session ends.
@@ -558,27 +580,12 @@ async fn write_loop(
                 tokio::select! {
                     () = shared.wake.notified() => {}
                     () = shutdown_signalled(&mut shutdown) => {}
+                    _ = scene.retired() => {}
                 }
                 continue;
             }
             Action::End(end) => {
-                match &end {
-                    End::ClientGone => {
-                        // Flushes the close reply the websocket layer queued.
-                        let _ = tokio::time::timeout(CLOSE_GRACE, sink.close()).await;
-                    }
-                    End::Malformed(code, reason) => {
-                        send_briefly(sink, close_frame(*code, reason)).await;
-                    }
-                    End::Fatal(reason) => {
-                        send_briefly(sink, control(&error(reason.clone(), true))).await;
-                        send_briefly(sink, close_frame(CLOSE_PROTOCOL, reason)).await;
-                    }
-                    End::ShuttingDown => {
-                        send_briefly(sink, close_frame(CLOSE_GOING_AWAY, "server shutting down"))
-                            .await;
-                    }
-                }
+                finish(sink, &end).await;
                 return end;
             }
             Action::Send(bytes) => bytes,
@@ -625,6 +632,8 @@ async fn write_loop(
                         }
                         frame
                     }
+                    // Retired by the read: the next action ends the session.
+                    Err(PageError::Changed(_)) => continue,
                     Err(e) => {
                         tracing::warn!(scene = %scene.name, page = next.page, "not sent: {e}");
                         let mut st = shared.lock();

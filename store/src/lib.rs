@@ -18,8 +18,10 @@ use farfield_protocol::paged_file::PagedFile;
 
 mod scene_file;
 mod source;
+mod stamp;
 pub use scene_file::SceneFile;
-pub use source::PageSource;
+pub use source::{PageError, PageSource};
+pub use stamp::FileStamp;
 
 /// Why a file could not be written or read. The cause is a field named
 /// `error`, printed in the message (as in the importers' `ImportError`).

@@ -5,7 +5,8 @@
 //! or overwrites while it is served then yields a short read or a page that
 //! fails its checks, reported as an error, where a map would raise SIGBUS
 //! and take the whole process down. The header and its directory are read
-//! once, at open.
+//! once, at open, with the file's [`FileStamp`]; [`SceneFile::changed`]
+//! says whether the open file has been written to since.
 
 use std::fs::File;
 use std::path::{Path, PathBuf};
@@ -16,6 +17,7 @@ use farfield_protocol::hierarchy::Hierarchy;
 use farfield_protocol::page::Page;
 
 use crate::StoreError;
+use crate::stamp::FileStamp;
 
 /// How much of a file is read first to find its header's length.
 const HEADER_PROBE_BYTES: u64 = 64 << 10;
@@ -28,8 +30,8 @@ pub struct SceneFile {
     /// The header as stored (fixed part, directory, checksum).
     header_bytes: Vec<u8>,
     file: File,
-    /// Bytes of the file when it was opened.
-    len: u64,
+    /// The file when it was opened (its length is the file's bytes).
+    stamp: FileStamp,
 }
 
 impl SceneFile {
@@ -45,7 +47,8 @@ impl SceneFile {
             error,
         };
         let file = File::open(path).map_err(io)?;
-        let len = file.metadata().map_err(io)?.len();
+        let stamp = FileStamp::of(&file.metadata().map_err(io)?);
+        let len = stamp.len;
         let mut header_bytes = vec![0; len.min(HEADER_PROBE_BYTES) as usize];
         read_exact_at(&file, &mut header_bytes, 0).map_err(io)?;
         let header = match FileHeader::decode(&header_bytes) {
@@ -75,8 +78,23 @@ impl SceneFile {
             header,
             header_bytes,
             file,
-            len,
+            stamp,
         })
+    }
+
+    /// The file as it was when opened.
+    pub fn stamp(&self) -> FileStamp {
+        self.stamp
+    }
+
+    /// How the open file changed since it was opened (truncated, extended,
+    /// written to), if it did. A file renamed over this one's path is not
+    /// a change: this file is still whole.
+    pub fn changed(&self) -> Option<String> {
+        match self.file.metadata() {
+            Ok(now) => self.stamp.change_to(&FileStamp::of(&now)),
+            Err(e) => Some(format!("it cannot be examined: {e}")),
+        }
     }
 
     /// The file's header bytes as stored (fixed part, directory and CRC),
@@ -151,11 +169,11 @@ impl SceneFile {
 
     /// Bytes of the whole file when it was opened.
     pub fn len(&self) -> u64 {
-        self.len
+        self.stamp.len
     }
 
     pub fn is_empty(&self) -> bool {
-        self.len == 0
+        self.stamp.len == 0
     }
 
     /// Every page made resident in a fresh hierarchy; corrupt pages are

@@ -9,6 +9,19 @@
 use farfield_protocol::FormatError;
 use farfield_protocol::file::FileHeader;
 
+/// Why a page could not be read.
+#[derive(Debug, thiserror::Error)]
+pub enum PageError {
+    /// The page's bytes are not a valid page of this scene.
+    #[error(transparent)]
+    Format(#[from] FormatError),
+    /// The stored scene is no longer the version that was opened, so none
+    /// of its pages can be trusted (a page of the new version could pass
+    /// every check and still not fit the header clients hold).
+    #[error("the scene's file changed on disk: {0}")]
+    Changed(String),
+}
+
 /// A scene's stored bytes: its header and its pages, verified on read.
 pub trait PageSource: Send + Sync + std::fmt::Debug {
     /// The scene's header, decoded.
@@ -22,8 +35,11 @@ pub trait PageSource: Send + Sync + std::fmt::Debug {
     /// checksum, its header and its agreement with the directory (on an
     /// error `out` is as it was). May block on a disk or a network: the
     /// server calls it from its blocking pool and its prefetch threads, not
-    /// from its async tasks.
-    fn read_page(&self, index: u32, out: &mut Vec<u8>) -> Result<(), FormatError>;
+    /// from its async tasks. A source that finds its stored version gone
+    /// says [`PageError::Changed`], whatever the bytes it read.
+    fn read_page(&self, index: u32, out: &mut Vec<u8>) -> Result<(), PageError>;
+    /// How the stored scene changed since it was opened, if it did.
+    fn changed(&self) -> Option<String>;
 }
 
 impl PageSource for crate::SceneFile {
@@ -39,7 +55,19 @@ impl PageSource for crate::SceneFile {
         self.len()
     }
 
-    fn read_page(&self, index: u32, out: &mut Vec<u8>) -> Result<(), FormatError> {
-        self.read_page_into(index as usize, out)
+    fn read_page(&self, index: u32, out: &mut Vec<u8>) -> Result<(), PageError> {
+        let start = out.len();
+        let read = self.read_page_into(index as usize, out);
+        // Checked after the read: bytes read while a writer was at work are
+        // thrown away even when they happen to pass the page's checks.
+        if let Some(why) = self.changed() {
+            out.truncate(start);
+            return Err(PageError::Changed(why));
+        }
+        Ok(read?)
+    }
+
+    fn changed(&self) -> Option<String> {
+        crate::SceneFile::changed(self)
     }
 }

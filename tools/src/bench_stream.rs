@@ -88,11 +88,13 @@ pub fn run_bench(job: &BenchStreamJob) -> anyhow::Result<BenchStreamReport> {
         .worker_threads(2)
         .enable_all()
         .build()?;
-    let server = rt.block_on(farfield_serve::start_scenes(
-        vec![(name.clone(), job.scene.clone())],
-        SocketAddr::from(([127, 0, 0, 1], 0)),
-        job.cache_bytes,
-    ))?;
+    let server = rt.block_on(farfield_serve::start(farfield_serve::ServerConfig {
+        cache_bytes: job.cache_bytes,
+        ..farfield_serve::ServerConfig::files(
+            vec![(name.clone(), job.scene.clone())],
+            SocketAddr::from(([127, 0, 0, 1], 0)),
+        )
+    }))?;
     let addr = server.local_addr();
     let url = format!("http://{addr}");
     let mut renderer = Renderer::new_headless(job.width, job.height)?;

@@ -76,9 +76,8 @@ pub fn run(job: &DemoJob) -> anyhow::Result<DemoSummary> {
         .enable_all()
         .build()?;
     let config = farfield_serve::ServerConfig {
-        scenes_dir: job.out.clone(),
-        listen: SocketAddr::from(([127, 0, 0, 1], 0)),
         cache_bytes: 64 << 20,
+        ..farfield_serve::ServerConfig::new(&job.out, SocketAddr::from(([127, 0, 0, 1], 0)))
     };
     let server = runtime
         .block_on(farfield_serve::start(config))

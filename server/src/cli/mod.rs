@@ -100,9 +100,23 @@ pub struct ServeArgs {
     /// Bound on the shared page cache, in bytes.
     #[arg(long, default_value_t = farfield_serve::DEFAULT_CACHE_BYTES)]
     pub cache_bytes: u64,
+    /// Seconds between looks at the scenes folder for scene files added,
+    /// replaced, changed or deleted while serving (0: never look again).
+    #[arg(long, default_value_t = farfield_serve::rescan::DEFAULT_RESCAN_INTERVAL.as_secs_f64(), value_parser = seconds)]
+    pub rescan_seconds: f64,
     /// Print the final counters as one JSON object on shutdown.
     #[arg(long)]
     pub json: bool,
+}
+
+/// A non-negative, finite number of seconds.
+fn seconds(text: &str) -> Result<f64, String> {
+    match text.parse::<f64>() {
+        Ok(s) if (0.0..1e9).contains(&s) => Ok(s),
+        _ => Err(format!(
+            "expected a number of seconds, at least 0, got {text:?}"
+        )),
+    }
 }
 
 #[derive(Debug, Subcommand)]

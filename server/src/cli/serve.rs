@@ -7,6 +7,7 @@
 //! final counters.
 
 use std::io::Write;
+use std::time::Duration;
 
 use serde_json::json;
 
@@ -23,9 +24,9 @@ pub fn run(args: &ServeArgs) -> anyhow::Result<Report> {
         // signals as soon as it reads the line never kills us uncleanly.
         let mut signals = Signals::new()?;
         let server = start(ServerConfig {
-            scenes_dir: args.scenes.clone(),
-            listen: args.listen,
             cache_bytes: args.cache_bytes,
+            rescan_interval: Duration::from_secs_f64(args.rescan_seconds),
+            ..ServerConfig::new(&args.scenes, args.listen)
         })
         .await?;
         {
