@@ -108,6 +108,12 @@ impl ServedScene {
         Some(u64::from(e.length))
     }
 
+    /// Bytes of the largest page.
+    pub fn largest_page(&self) -> usize {
+        let pages = &self.source.header().pages;
+        pages.iter().map(|p| p.length as usize).max().unwrap_or(0)
+    }
+
     /// Pages holding the children of `page`'s nodes.
     pub fn child_pages(&self, page: u32) -> Range<u32> {
         self.children.get(page as usize).cloned().unwrap_or(0..0)

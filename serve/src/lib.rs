@@ -13,15 +13,22 @@
 //! - [`cache`]: the byte-bounded LRU of verified page frames;
 //! - [`prefetch`]: read-ahead of child pages on a small thread pool;
 //! - [`schedule`]: one connection's priority queue and in-flight window;
+//! - [`limits`]: what one client may cost and how long it may take;
+//!   `admission` and `listen` enforce them at the socket, `session` after
+//!   the upgrade; [`rlimit`] raises the open-files limit to fit;
 //! - `session`: the websocket session itself;
 //! - `routes`: the HTTP endpoints;
 //! - [`metrics`]: atomics and the Prometheus text.
 
+mod admission;
 pub mod cache;
 pub mod catalog;
+pub mod limits;
+mod listen;
 pub mod metrics;
 pub mod prefetch;
 pub mod rescan;
+pub mod rlimit;
 mod routes;
 pub mod schedule;
 mod session;
@@ -32,12 +39,13 @@ use std::sync::Arc;
 use std::sync::atomic::Ordering;
 use std::time::Duration;
 
-use axum::serve::ListenerExt;
 use tokio::sync::{Notify, watch};
 use tokio::task::JoinHandle;
 
+use self::admission::Admission;
 use self::cache::PageCache;
 use self::catalog::Catalog;
+use self::limits::Limits;
 use self::metrics::{Metrics, MetricsSnapshot};
 use self::prefetch::Prefetcher;
 use self::rescan::{DEFAULT_RESCAN_INTERVAL, Origin, Rescanner};
@@ -83,6 +91,8 @@ pub struct ServerConfig {
     /// How often the scenes are looked at again for files added, replaced,
     /// changed or deleted; zero never looks again.
     pub rescan_interval: Duration,
+    /// Connections, timeouts, rates.
+    pub limits: Limits,
 }
 
 impl ServerConfig {
@@ -102,6 +112,7 @@ impl ServerConfig {
             listen,
             cache_bytes: DEFAULT_CACHE_BYTES,
             rescan_interval: DEFAULT_RESCAN_INTERVAL,
+            limits: Limits::default(),
         }
     }
 }
@@ -113,6 +124,7 @@ pub(crate) struct AppState {
     pub cache: Arc<PageCache>,
     pub metrics: Arc<Metrics>,
     pub prefetch: Prefetcher,
+    pub limits: Limits,
     /// Becomes `true` when the server is shutting down.
     pub shutdown: watch::Receiver<bool>,
     /// Signalled whenever a session ends.
@@ -126,7 +138,8 @@ pub struct RunningServer {
     local_addr: SocketAddr,
     state: Arc<AppState>,
     shutdown_tx: Arc<watch::Sender<bool>>,
-    task: Option<JoinHandle<std::io::Result<()>>>,
+    task: Option<JoinHandle<()>>,
+    admission: Arc<Admission>,
 }
 
 /// Starts shutting a server down from anywhere (a signal handler, a test).
@@ -148,7 +161,10 @@ pub async fn start(config: ServerConfig) -> Result<RunningServer, ServeError> {
         listen,
         cache_bytes,
         rescan_interval,
+        limits,
     } = config;
+    let mut limits = limits.sane();
+    fit_open_files(&mut limits);
     let scenes = match &origin {
         Origin::Folder(dir) => catalog::scan_dir(dir)?,
         Origin::Files(files) => files.clone(),
@@ -170,6 +186,7 @@ pub async fn start(config: ServerConfig) -> Result<RunningServer, ServeError> {
         cache,
         metrics,
         prefetch,
+        limits: limits.clone(),
         shutdown: shutdown_rx.clone(),
         session_ended: Notify::new(),
     });
@@ -183,25 +200,18 @@ pub async fn start(config: ServerConfig) -> Result<RunningServer, ServeError> {
         addr: listen,
         error,
     })?;
-    let app = routes::router(state.clone());
-    let mut signal = shutdown_rx;
-    // Pages are written one frame at a time, each smaller than a loopback
-    // segment: with Nagle's algorithm on, every one would wait for the
-    // previous one's acknowledgement.
-    let listener = listener.tap_io(|tcp| {
-        if let Err(e) = tcp.set_nodelay(true) {
-            tracing::debug!("TCP_NODELAY: {e}");
-        }
-    });
-    let server = axum::serve(
+    let admission = Admission::new(
+        limits.max_connections,
+        limits.max_connections_per_address,
+        state.metrics.clone(),
+    );
+    let task = tokio::spawn(listen::accept_loop(
         listener,
-        app.into_make_service_with_connect_info::<SocketAddr>(),
-    )
-    .with_graceful_shutdown(async move {
-        // A dropped sender also means shut down.
-        let _ = signal.wait_for(|&stop| stop).await;
-    });
-    let task = tokio::spawn(async move { server.await });
+        routes::router(state.clone()),
+        state.clone(),
+        admission.clone(),
+        shutdown_rx,
+    ));
     if !rescan_interval.is_zero() {
         tokio::spawn(rescan_loop(
             Rescanner::new(origin),
@@ -215,7 +225,26 @@ pub async fn start(config: ServerConfig) -> Result<RunningServer, ServeError> {
         state,
         shutdown_tx: Arc::new(shutdown_tx),
         task: Some(task),
+        admission,
     })
+}
+
+/// Raises the open-files limit to what `limits.max_connections` needs, or
+/// lowers the connection limit to what the open-files limit allows (with a
+/// warning): a server that runs out of descriptors refuses everyone.
+fn fit_open_files(limits: &mut Limits) {
+    let wanted = limits.max_connections as u64 + rlimit::RESERVED_FILES;
+    if let Some(files) = rlimit::raise_open_files(wanted) {
+        let fits = files.saturating_sub(rlimit::RESERVED_FILES).max(1) as usize;
+        if fits < limits.max_connections {
+            tracing::warn!(
+                open_files = files,
+                "the open-files limit allows {fits} connections, not {}; serving at most {fits}",
+                limits.max_connections
+            );
+            limits.max_connections = fits;
+        }
+    }
 }
 
 /// Rescans every `interval` until the server shuts down; each pass runs on
@@ -292,28 +321,29 @@ impl RunningServer {
     /// the final counters.
     pub async fn shutdown(mut self) -> Result<MetricsSnapshot, ServeError> {
         self.shutdown_tx.send_replace(true);
-        if let Some(task) = self.task.take() {
-            match tokio::time::timeout(SHUTDOWN_GRACE, task).await {
-                Ok(Ok(Ok(()))) => {}
-                Ok(Ok(Err(e))) => return Err(ServeError::Task(e.to_string())),
-                Ok(Err(e)) => return Err(ServeError::Task(e.to_string())),
-                Err(_) => tracing::warn!("HTTP connections still open after the grace period"),
-            }
+        if let Some(task) = self.task.take()
+            && let Err(e) = task.await
+        {
+            return Err(ServeError::Task(e.to_string()));
         }
+        // Every connection, HTTP or websocket, holds an admission ticket.
         let drained = tokio::time::timeout(SHUTDOWN_GRACE, async {
             loop {
-                let ended = self.state.session_ended.notified();
-                tokio::pin!(ended);
-                ended.as_mut().enable();
-                if self.state.metrics.connected_clients.load(Ordering::SeqCst) <= 0 {
+                let closed = self.admission.closed.notified();
+                tokio::pin!(closed);
+                closed.as_mut().enable();
+                if self.admission.open() == 0 {
                     break;
                 }
-                ended.await;
+                closed.await;
             }
         })
         .await;
         if drained.is_err() {
-            tracing::warn!("sessions still open after the grace period");
+            tracing::warn!(
+                open = self.admission.open(),
+                "connections still open after the grace period"
+            );
         }
         let snapshot = self.state.metrics.snapshot();
         tracing::info!(

@@ -12,6 +12,8 @@ use std::time::Duration;
 
 use serde::Serialize;
 
+use crate::limits::Limit;
+
 /// Upper bounds of the latency buckets, in seconds (`+Inf` is implicit).
 pub const LATENCY_BUCKETS_S: [f64; 16] = [
     0.0001, 0.00025, 0.0005, 0.001, 0.0025, 0.005, 0.01, 0.025, 0.05, 0.1, 0.25, 0.5, 1.0, 2.5,
@@ -36,10 +38,15 @@ pub struct Metrics {
     pub connections_total: AtomicU64,
     /// Signed so a decrement racing an increment can never wrap.
     pub connected_clients: AtomicI64,
+    /// TCP connections open now (HTTP and websocket).
+    pub open_connections: AtomicI64,
     /// Pages wanted and not yet sent, over all connections.
     pub queue_depth: AtomicI64,
     pub pages_cancelled: AtomicU64,
     pub scenes: AtomicU64,
+    /// Per [`Limit`], in [`Limit::ALL`]'s order: how often a client ran
+    /// into it.
+    pub limit_hits: [AtomicU64; Limit::ALL.len()],
     pub latency: Histogram,
 }
 
@@ -101,9 +108,12 @@ pub struct MetricsSnapshot {
     pub malformed_frames: u64,
     pub connections_total: u64,
     pub connected_clients: u64,
+    pub open_connections: u64,
     pub queue_depth: u64,
     pub pages_cancelled: u64,
     pub scenes: u64,
+    /// Limit name -> times a client ran into it.
+    pub limit_hits: std::collections::BTreeMap<&'static str, u64>,
     pub latency_count: u64,
     pub latency_sum_s: f64,
 }
@@ -119,6 +129,13 @@ fn gauge(a: &AtomicI64) -> u64 {
 impl Metrics {
     pub fn add(a: &AtomicU64, n: u64) {
         a.fetch_add(n, Ordering::Relaxed);
+    }
+
+    /// Counts a client running into `limit`.
+    pub fn hit(&self, limit: Limit) {
+        if let Some(i) = Limit::ALL.iter().position(|&l| l == limit) {
+            Self::add(&self.limit_hits[i], 1);
+        }
     }
 
     pub fn snapshot(&self) -> MetricsSnapshot {
@@ -138,9 +155,15 @@ impl Metrics {
             malformed_frames: get(&self.malformed_frames),
             connections_total: get(&self.connections_total),
             connected_clients: gauge(&self.connected_clients),
+            open_connections: gauge(&self.open_connections),
             queue_depth: gauge(&self.queue_depth),
             pages_cancelled: get(&self.pages_cancelled),
             scenes: get(&self.scenes),
+            limit_hits: Limit::ALL
+                .iter()
+                .zip(&self.limit_hits)
+                .map(|(l, n)| (l.name(), get(n)))
+                .collect(),
             latency_count,
             latency_sum_s,
         }
@@ -241,6 +264,12 @@ impl Metrics {
             s.connected_clients,
         );
         metric(
+            "farfield_open_connections",
+            "gauge",
+            "TCP connections open now, HTTP and websocket.",
+            s.open_connections,
+        );
+        metric(
             "farfield_queue_depth",
             "gauge",
             "Pages requested and not yet sent, over all connections.",
@@ -253,6 +282,15 @@ impl Metrics {
             s.pages_cancelled,
         );
         metric("farfield_scenes", "gauge", "Scenes being served.", s.scenes);
+        let name = "farfield_limit_hits_total";
+        let _ = writeln!(
+            out,
+            "# HELP {name} Connections refused or closed by a limit, per limit."
+        );
+        let _ = writeln!(out, "# TYPE {name} counter");
+        for (limit, n) in &s.limit_hits {
+            let _ = writeln!(out, "{name}{{limit=\"{limit}\"}} {n}");
+        }
         let (counts, sum, count) = self.latency.cumulative();
         let name = "farfield_request_latency_seconds";
         let _ = writeln!(
@@ -294,6 +332,11 @@ mod tests {
         assert!(text.contains("farfield_request_latency_seconds_bucket{le=\"+Inf\"} 3"));
         assert!(text.contains("farfield_request_latency_seconds_count 3"));
         assert!(text.contains("# TYPE farfield_queue_depth gauge"));
+        m.hit(Limit::IdleTimeout);
+        assert!(
+            m.render()
+                .contains("farfield_limit_hits_total{limit=\"idle_timeout\"} 1")
+        );
     }
 
     #[test]

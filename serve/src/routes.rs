@@ -19,6 +19,7 @@ use farfield_protocol::codec::MAX_CONTROL_BYTES;
 use serde_json::{Value, json};
 
 use super::AppState;
+use super::limits::{WRITE_BUFFER_BYTES, WRITE_BUFFER_SLACK_BYTES};
 use super::session;
 
 /// Largest websocket message a client may send: one control message plus
@@ -83,8 +84,15 @@ async fn stream(
         Ok(ws) => ws,
         Err(rejection) => return rejection.into_response(),
     };
+    // The write buffer holds one frame (the header or the largest page)
+    // beyond its usual size, and room for pongs: a client that pings and
+    // never reads costs this much, not more (tungstenite's default is
+    // unbounded).
+    let largest_frame = scene.source.header_bytes().len().max(scene.largest_page()) + 16;
     ws.max_message_size(MAX_CLIENT_MESSAGE)
         .max_frame_size(MAX_CLIENT_MESSAGE)
+        .write_buffer_size(WRITE_BUFFER_BYTES)
+        .max_write_buffer_size(WRITE_BUFFER_BYTES + largest_frame + WRITE_BUFFER_SLACK_BYTES)
         .on_upgrade(move |socket: WebSocket| session::run(socket, scene, app, peer))
 }
 

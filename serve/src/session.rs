@@ -28,11 +28,10 @@ use tokio::sync::{Notify, watch};
 
 use super::AppState;
 use super::catalog::ServedScene;
+use super::limits::{Limit, RateLimiter};
 use super::metrics::Metrics;
 use super::schedule::{PAGE_ZERO_PRIORITY, Schedule};
 
-/// How long a client has to say hello.
-pub const HELLO_TIMEOUT: Duration = Duration::from_secs(10);
 /// How long a closing session waits for its last frames to go out.
 const CLOSE_GRACE: Duration = Duration::from_secs(2);
 
@@ -41,6 +40,7 @@ const CLOSE_GOING_AWAY: u16 = 1001;
 const CLOSE_PROTOCOL: u16 = 1002;
 const CLOSE_UNSUPPORTED: u16 = 1003;
 const CLOSE_POLICY: u16 = 1008;
+const CLOSE_TOO_BIG: u16 = 1009;
 
 /// Most bytes of control replies (errors) a session keeps waiting for a
 /// client that does not read them; past it the session is closed
@@ -58,6 +58,8 @@ enum End {
     ClientGone,
     /// The client broke the protocol; close with this code and reason.
     Malformed(u16, String),
+    /// The client ran into a limit; close with this code and reason.
+    Limited(Limit, u16, String),
     /// A fatal error already sent; close with this reason.
     Fatal(String),
     /// The scene was taken out of service (its file changed); the client is
@@ -123,7 +125,8 @@ impl State {
     fn queue_control(&mut self, message: &ServerMessage) -> Result<(), End> {
         let frame = Bytes::from(encode_control(message));
         if self.outbox_bytes + frame.len() > self.outbox_limit {
-            return Err(End::Malformed(
+            return Err(End::Limited(
+                Limit::UnreadReplies,
                 CLOSE_POLICY,
                 format!(
                     "the client leaves its replies unread ({} KiB of them wait)",
@@ -184,26 +187,42 @@ async fn send_briefly(sink: &mut Sink, message: Message) {
 /// A client frame, sorted.
 enum Frame {
     Binary(Bytes),
+    /// A ping or a pong: the client is there, and says nothing.
+    Alive,
     Bad(u16, String),
+    TooBig(String),
     Gone,
 }
 
 async fn next_frame(stream: &mut Stream) -> Frame {
-    loop {
-        match stream.next().await {
-            Some(Ok(Message::Binary(b))) => return Frame::Binary(b),
-            Some(Ok(Message::Ping(_) | Message::Pong(_))) => continue,
-            Some(Ok(Message::Text(_))) => {
-                return Frame::Bad(
-                    CLOSE_UNSUPPORTED,
-                    "text frame: this protocol speaks binary frames only".into(),
-                );
-            }
-            Some(Ok(Message::Close(_))) | None => return Frame::Gone,
-            Some(Err(e)) => {
-                tracing::debug!("websocket read failed: {e}");
-                return Frame::Gone;
-            }
+    match stream.next().await {
+        Some(Ok(Message::Binary(b))) => Frame::Binary(b),
+        Some(Ok(Message::Ping(_) | Message::Pong(_))) => Frame::Alive,
+        Some(Ok(Message::Text(_))) => Frame::Bad(
+            CLOSE_UNSUPPORTED,
+            "text frame: this protocol speaks binary frames only".into(),
+        ),
+        Some(Ok(Message::Close(_))) | None => Frame::Gone,
+        Some(Err(e)) => read_error(e),
+    }
+}
+
+/// A failed read, sorted: the websocket layer refuses frames that break
+/// RFC 6455 (unmasked, bad opcodes, bad UTF-8 in a close reason) and
+/// messages past the size limit; everything else is the connection going.
+fn read_error(error: axum::Error) -> Frame {
+    use tungstenite::error::{CapacityError, Error as WsError};
+    let inner = error.into_inner();
+    match inner.downcast_ref::<WsError>() {
+        Some(WsError::Capacity(CapacityError::MessageTooLong { size, max_size })) => {
+            Frame::TooBig(format!("a {size}-byte message; the limit is {max_size}"))
+        }
+        Some(WsError::Capacity(e)) => Frame::TooBig(e.to_string()),
+        Some(WsError::Protocol(e)) => Frame::Bad(CLOSE_PROTOCOL, format!("websocket: {e}")),
+        Some(WsError::Utf8(e)) => Frame::Bad(1007, format!("websocket: {e}")),
+        _ => {
+            tracing::debug!("websocket read failed: {inner}");
+            Frame::Gone
         }
     }
 }
@@ -239,7 +258,7 @@ pub(crate) async fn run(
     let mut shutdown = app.shutdown.clone();
 
     let first = tokio::select! {
-        r = tokio::time::timeout(HELLO_TIMEOUT, next_frame(&mut stream)) => r,
+        r = tokio::time::timeout(app.limits.hello_timeout, first_message(&mut stream)) => r,
         () = shutdown_signalled(&mut shutdown) => {
             send_briefly(&mut sink, close_frame(CLOSE_GOING_AWAY, "server shutting down")).await;
             return;
@@ -323,7 +342,8 @@ pub(crate) async fn run(
 fn describe(end: &End) -> String {
     match end {
         End::ClientGone => "closed by the client".into(),
-        End::Malformed(_, reason) => format!("malformed frame: {reason}"),
+        End::Malformed(_, reason) => format!("protocol violation: {reason}"),
+        End::Limited(limit, _, reason) => format!("limit {}: {reason}", limit.name()),
         End::Fatal(reason) | End::Retired(reason) => reason.clone(),
         End::ShuttingDown => "server shutting down".into(),
     }
@@ -337,15 +357,14 @@ fn hello(
 ) -> Result<(u64, bool), End> {
     let frame = match first {
         Ok(Frame::Binary(b)) => b,
+        Ok(Frame::Alive) => unreachable!("first_message skips pings"),
         Ok(Frame::Gone) => return Err(End::ClientGone),
-        Ok(Frame::Bad(code, reason)) => {
-            Metrics::add(&app.metrics.malformed_frames, 1);
-            return Err(End::Malformed(code, reason));
-        }
+        Ok(other) => return Err(misbehaved(other, app)),
         Err(_) => {
+            app.metrics.hit(Limit::HelloTimeout);
             return Err(End::Fatal(format!(
                 "no Hello within {} s",
-                HELLO_TIMEOUT.as_secs()
+                app.limits.hello_timeout.as_secs_f64()
             )));
         }
     };
@@ -395,7 +414,9 @@ async fn finish(sink: &mut Sink, end: &End) {
             // Flushes the close reply the websocket layer queued.
             let _ = tokio::time::timeout(CLOSE_GRACE, sink.close()).await;
         }
-        End::Malformed(code, reason) => send_briefly(sink, close_frame(*code, reason)).await,
+        End::Malformed(code, reason) | End::Limited(_, code, reason) => {
+            send_briefly(sink, close_frame(*code, reason)).await;
+        }
         End::Fatal(reason) => {
             send_briefly(sink, control(&error(reason.clone(), true))).await;
             send_briefly(sink, close_frame(CLOSE_PROTOCOL, reason)).await;
@@ -410,21 +431,71 @@ async fn finish(sink: &mut Sink, end: &End) {
     }
 }
 
-/// Reads client frames until the client leaves or breaks the protocol.
+/// The first frame that is not a ping or a pong.
+async fn first_message(stream: &mut Stream) -> Frame {
+    loop {
+        match next_frame(stream).await {
+            Frame::Alive => continue,
+            other => return other,
+        }
+    }
+}
+
+/// How a session ends for a frame that breaks the protocol or a limit,
+/// counted.
+fn misbehaved(frame: Frame, app: &AppState) -> End {
+    match frame {
+        Frame::TooBig(reason) => {
+            app.metrics.hit(Limit::MessageSize);
+            End::Limited(Limit::MessageSize, CLOSE_TOO_BIG, reason)
+        }
+        Frame::Bad(code, reason) => {
+            Metrics::add(&app.metrics.malformed_frames, 1);
+            End::Malformed(code, reason)
+        }
+        Frame::Binary(_) | Frame::Alive => End::Malformed(CLOSE_PROTOCOL, "unexpected".into()),
+        Frame::Gone => End::ClientGone,
+    }
+}
+
+/// Reads client frames until the client leaves, breaks the protocol, goes
+/// quiet for the idle timeout or sends faster than the rate limit.
 async fn read_loop(
     stream: &mut Stream,
     shared: &Shared,
     scene: &Arc<ServedScene>,
     app: &AppState,
 ) -> End {
+    let limits = &app.limits;
+    let mut rate = RateLimiter::new(limits.max_messages_per_second, Instant::now());
     loop {
-        let frame = match next_frame(stream).await {
+        let Ok(frame) = tokio::time::timeout(limits.idle_timeout, next_frame(stream)).await else {
+            app.metrics.hit(Limit::IdleTimeout);
+            return End::Limited(
+                Limit::IdleTimeout,
+                CLOSE_GOING_AWAY,
+                format!(
+                    "nothing from the client for {} s, not even a pong",
+                    limits.idle_timeout.as_secs_f64()
+                ),
+            );
+        };
+        if !rate.take(Instant::now()) {
+            app.metrics.hit(Limit::MessageRate);
+            return End::Limited(
+                Limit::MessageRate,
+                CLOSE_POLICY,
+                format!(
+                    "more than {} messages a second",
+                    limits.max_messages_per_second
+                ),
+            );
+        }
+        let frame = match frame {
             Frame::Binary(b) => b,
+            Frame::Alive => continue,
             Frame::Gone => return End::ClientGone,
-            Frame::Bad(code, reason) => {
-                Metrics::add(&app.metrics.malformed_frames, 1);
-                return End::Malformed(code, reason);
-            }
+            other => return misbehaved(other, app),
         };
         let message = match decode(&frame) {
             Ok(message) => message,
@@ -434,8 +505,10 @@ async fn read_loop(
             }
         };
         if let Err(end) = apply(message, shared, scene, app) {
-            if matches!(end, End::Malformed(CLOSE_PROTOCOL, _)) {
-                Metrics::add(&app.metrics.malformed_frames, 1);
+            match &end {
+                End::Malformed(..) => Metrics::add(&app.metrics.malformed_frames, 1),
+                End::Limited(limit, ..) => app.metrics.hit(*limit),
+                _ => {}
             }
             return end;
         }
@@ -564,23 +637,29 @@ async fn write_loop(
     app: &Arc<AppState>,
     mut shutdown: watch::Receiver<bool>,
 ) -> End {
+    let stall = app.limits.idle_timeout;
+    // Often enough that a client that answers pings is never idle.
+    let ping_every = stall / 3;
     loop {
         let shutting_down = *shutdown.borrow();
         let frame = match next_action(shared, scene, shutting_down) {
             Action::Wait => {
                 // Frames are queued with `feed`; before sleeping, everything
                 // queued goes out.
-                let flushed = tokio::select! {
-                    r = sink.flush() => r,
-                    () = shutdown_signalled(&mut shutdown) => return End::ShuttingDown,
-                };
-                if flushed.is_err() {
-                    return End::ClientGone;
+                if let Err(end) = write(sink.flush(), &mut shutdown, stall, app).await {
+                    return end;
                 }
-                tokio::select! {
-                    () = shared.wake.notified() => {}
-                    () = shutdown_signalled(&mut shutdown) => {}
-                    _ = scene.retired() => {}
+                let ping = tokio::select! {
+                    () = shared.wake.notified() => false,
+                    () = shutdown_signalled(&mut shutdown) => false,
+                    _ = scene.retired() => false,
+                    () = tokio::time::sleep(ping_every) => true,
+                };
+                if ping {
+                    let ping = sink.feed(Message::Ping(Bytes::new()));
+                    if let Err(end) = write(ping, &mut shutdown, stall, app).await {
+                        return end;
+                    }
                 }
                 continue;
             }
@@ -599,12 +678,8 @@ async fn write_loop(
                     None => {
                         // A disk read may take a while: frames already
                         // queued go out first rather than wait for it.
-                        let flushed = tokio::select! {
-                            r = sink.flush() => r,
-                            () = shutdown_signalled(&mut shutdown) => return End::ShuttingDown,
-                        };
-                        if flushed.is_err() {
-                            return End::ClientGone;
+                        if let Err(end) = write(sink.flush(), &mut shutdown, stall, app).await {
+                            return end;
                         }
                         app.cache.miss(scene, next.page, &app.metrics).await
                     }
@@ -651,16 +726,36 @@ async fn write_loop(
         // `feed` queues the frame (the websocket layer writes to the socket
         // once its buffer fills); the flush above sends the rest when the
         // schedule runs dry, so consecutive pages share system calls.
-        let sent = tokio::select! {
-            r = sink.feed(Message::Binary(frame)) => r,
-            () = shutdown_signalled(&mut shutdown) => {
-                // The client is not reading; it gets no goodbye.
-                return End::ShuttingDown;
-            }
-        };
-        if sent.is_err() {
-            return End::ClientGone;
+        let sent = sink.feed(Message::Binary(frame));
+        if let Err(end) = write(sent, &mut shutdown, stall, app).await {
+            return end;
         }
+    }
+}
+
+/// Waits for a write to the socket (a `feed` or a `flush`): how the session
+/// ends when the client is gone, takes no bytes for `stall`, or the server
+/// shuts down first (a client that is not reading gets no goodbye then).
+async fn write(
+    op: impl Future<Output = Result<(), axum::Error>>,
+    shutdown: &mut watch::Receiver<bool>,
+    stall: Duration,
+    app: &AppState,
+) -> Result<(), End> {
+    tokio::select! {
+        r = tokio::time::timeout(stall, op) => match r {
+            Ok(Ok(())) => Ok(()),
+            Ok(Err(_)) => Err(End::ClientGone),
+            Err(_) => {
+                app.metrics.hit(Limit::IdleTimeout);
+                Err(End::Limited(
+                    Limit::IdleTimeout,
+                    CLOSE_GOING_AWAY,
+                    format!("the client took no bytes for {} s", stall.as_secs_f64()),
+                ))
+            }
+        },
+        () = shutdown_signalled(shutdown) => Err(End::ShuttingDown),
     }
 }
 

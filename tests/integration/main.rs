@@ -4,6 +4,7 @@
 mod adapter;
 mod bad_input;
 mod bench;
+mod crowd;
 mod cubes;
 mod extremes;
 mod holes;
@@ -11,7 +12,7 @@ mod kinds;
 mod layout;
 mod progress;
 mod real_data;
-mod serve;
+pub(crate) mod serve;
 mod streaming;
 mod surface;
 mod traversal;

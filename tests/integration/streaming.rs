@@ -21,11 +21,11 @@ use farfield_view::viewer::Viewer;
 
 use crate::build;
 
-const SIZE: (u32, u32) = (320, 240);
+pub(crate) const SIZE: (u32, u32) = (320, 240);
 
 /// Writes the small generated island (and the bunny, when the shared data
 /// is there) into a fresh scenes folder.
-fn scenes(name: &str) -> (PathBuf, Vec<&'static str>) {
+pub(crate) fn scenes(name: &str) -> (PathBuf, Vec<&'static str>) {
     let dir = scratch(name);
     let mut params = Params::default();
     params.set("size", 96);
@@ -48,7 +48,7 @@ fn scenes(name: &str) -> (PathBuf, Vec<&'static str>) {
     (dir, names)
 }
 
-fn runtime() -> tokio::runtime::Runtime {
+pub(crate) fn runtime() -> tokio::runtime::Runtime {
     tokio::runtime::Builder::new_multi_thread()
         .worker_threads(2)
         .enable_all()
@@ -79,7 +79,7 @@ fn job(source: Source, camera: CameraSpec) -> RenderJob {
 }
 
 /// A job streaming the island from the server at `url`, at [`camera`].
-fn island_from(url: String) -> RenderJob {
+pub(crate) fn island_from(url: String) -> RenderJob {
     job(
         Source::Server {
             url,
@@ -101,7 +101,7 @@ fn psnr(a: &[u8], b: &[u8]) -> f64 {
     compare(a, b, SIZE.0, SIZE.1, 8).unwrap().psnr_db
 }
 
-fn render(renderer: &mut Renderer, job: &RenderJob) -> Rendered {
+pub(crate) fn render(renderer: &mut Renderer, job: &RenderJob) -> Rendered {
     let r = run(job, renderer, false).expect("render");
     assert!(r.report.refined, "not refined: {:?}", r.report.last_error);
     r

@@ -9,6 +9,9 @@ mod serve;
 
 use std::net::SocketAddr;
 use std::path::PathBuf;
+use std::time::Duration;
+
+use farfield_serve::limits::Limits;
 
 use clap::{Parser, Subcommand};
 
@@ -104,9 +107,51 @@ pub struct ServeArgs {
     /// replaced, changed or deleted while serving (0: never look again).
     #[arg(long, default_value_t = farfield_serve::rescan::DEFAULT_RESCAN_INTERVAL.as_secs_f64(), value_parser = seconds)]
     pub rescan_seconds: f64,
+    #[command(flatten)]
+    pub limits: LimitArgs,
     /// Print the final counters as one JSON object on shutdown.
     #[arg(long)]
     pub json: bool,
+}
+
+/// What one client may cost and how long it may take (defaults suit a
+/// public server; see `farfield_serve::limits`).
+#[derive(Debug, clap::Args)]
+pub struct LimitArgs {
+    /// Connections open at once, all clients together (past it: 503).
+    #[arg(long, default_value_t = Limits::default().max_connections)]
+    pub max_connections: usize,
+    /// Connections open at once from one IP address (past it: 429).
+    #[arg(long, default_value_t = Limits::default().max_connections_per_address)]
+    pub max_connections_per_address: usize,
+    /// Seconds a connection has to send its request headers (also the
+    /// longest a kept-alive HTTP connection may sit idle).
+    #[arg(long, default_value_t = Limits::default().header_timeout.as_secs_f64(), value_parser = seconds)]
+    pub header_timeout: f64,
+    /// Seconds a websocket client has to say hello.
+    #[arg(long, default_value_t = Limits::default().hello_timeout.as_secs_f64(), value_parser = seconds)]
+    pub hello_timeout: f64,
+    /// Seconds a session may go without a message or a pong, or without
+    /// taking bytes, before it is closed.
+    #[arg(long, default_value_t = Limits::default().idle_timeout.as_secs_f64(), value_parser = seconds)]
+    pub idle_timeout: f64,
+    /// Websocket messages (pings included) a session may send per second.
+    #[arg(long, default_value_t = Limits::default().max_messages_per_second)]
+    pub max_messages_per_second: u32,
+}
+
+impl LimitArgs {
+    pub fn limits(&self) -> Limits {
+        Limits {
+            max_connections: self.max_connections,
+            max_connections_per_address: self.max_connections_per_address,
+            header_timeout: Duration::from_secs_f64(self.header_timeout),
+            hello_timeout: Duration::from_secs_f64(self.hello_timeout),
+            idle_timeout: Duration::from_secs_f64(self.idle_timeout),
+            max_messages_per_second: self.max_messages_per_second,
+        }
+        .sane()
+    }
 }
 
 /// A non-negative, finite number of seconds.

@@ -26,6 +26,7 @@ pub fn run(args: &ServeArgs) -> anyhow::Result<Report> {
         let server = start(ServerConfig {
             cache_bytes: args.cache_bytes,
             rescan_interval: Duration::from_secs_f64(args.rescan_seconds),
+            limits: args.limits.limits(),
             ..ServerConfig::new(&args.scenes, args.listen)
         })
         .await?;

@@ -5,11 +5,12 @@
 //! frames, close codes and misbehaviour these tests need to control). Every wait is bounded, so a broken server fails a test instead
 //! of hanging it.
 
+mod hostile;
+pub(crate) mod limits;
 mod live;
 mod support;
 
 use std::collections::HashSet;
-use std::net::SocketAddr;
 use std::time::Duration;
 
 use farfield_builder::import::{Params, load_input};
@@ -532,32 +533,9 @@ async fn shutdown_closes_sessions_with_a_reason() {
 #[cfg(unix)]
 #[test]
 fn serve_command_prints_its_address_and_stops_on_sigterm() {
-    use std::io::{BufRead, BufReader};
-    use std::process::{Command, Stdio};
-
     let dir = scenes_dir("serve-cli");
-    let mut child = Command::new(std::env::current_exe().expect("test binary"))
-        .args(["serve::serve_cli_child", "--exact", "--nocapture"])
-        .env("FARFIELD_SERVE_CHILD_DIR", &dir)
-        .stdout(Stdio::piped())
-        .stderr(Stdio::null())
-        .spawn()
-        .expect("spawn");
-    let stdout = child.stdout.take().expect("stdout");
-    let (tx, rx) = std::sync::mpsc::channel();
-    std::thread::spawn(move || {
-        for line in BufReader::new(stdout).lines().map_while(Result::ok) {
-            if tx.send(line).is_err() {
-                break;
-            }
-        }
-    });
-    let addr: SocketAddr = loop {
-        let line = rx.recv_timeout(T).expect("no address printed");
-        if let Some(addr) = line.strip_prefix("listening on ") {
-            break addr.parse().expect("address");
-        }
-    };
+    let mut server = ChildServer::start(&dir, "");
+    let addr = server.addr;
     let runtime = tokio::runtime::Runtime::new().expect("runtime");
     assert_eq!(
         runtime.block_on(http_get(addr, "/healthz")),
@@ -566,21 +544,21 @@ fn serve_command_prints_its_address_and_stops_on_sigterm() {
     let (_, body) = runtime.block_on(http_get(addr, "/scenes"));
     assert!(body.contains("island") && body.contains("tree"), "{body}");
 
-    let status = Command::new("kill")
-        .args(["-TERM", &child.id().to_string()])
+    let status = std::process::Command::new("kill")
+        .args(["-TERM", &server.child.id().to_string()])
         .status()
         .expect("kill");
     assert!(status.success());
     let deadline = std::time::Instant::now() + T;
     let exit = loop {
-        if let Some(exit) = child.try_wait().expect("wait") {
+        if let Some(exit) = server.child.try_wait().expect("wait") {
             break exit;
         }
         assert!(std::time::Instant::now() < deadline, "server did not stop");
         std::thread::sleep(Duration::from_millis(20));
     };
     assert!(exit.success(), "{exit:?}");
-    let rest: Vec<String> = rx.try_iter().collect();
+    let rest: Vec<String> = server.lines.try_iter().collect();
     assert!(
         rest.iter().any(|l| l.contains("\"connections_total\"")),
         "final JSON report: {rest:?}"
@@ -595,15 +573,17 @@ fn serve_cli_child() {
         return;
     };
     let dir = dir.to_string_lossy().into_owned();
-    let report = crate::cli(&[
+    let extra = std::env::var("FARFIELD_SERVE_CHILD_ARGS").unwrap_or_default();
+    let mut args = vec![
         "serve",
         "--scenes",
         &dir,
         "--listen",
         "127.0.0.1:0",
         "--json",
-    ])
-    .expect("serve");
+    ];
+    args.extend(extra.split_whitespace());
+    let report = crate::cli(&args).expect("serve");
     println!("{}", report.json);
 }
 
@@ -614,7 +594,8 @@ fn serve_cli_child() {
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_client_that_never_reads_its_error_replies_is_closed_at_the_bound() {
     let dir = scenes_dir("serve-outbox");
-    let server = serve(&dir).await;
+    // The rate limit would close it first: lifted, so the bound is tested.
+    let server = serve_with(&dir, |c| c.limits.max_messages_per_second = u32::MAX).await;
     let addr = server.local_addr();
     let (mut c, _, _) = Client::open(addr, "island", MIN_WINDOW, false).await;
     let bogus = Message::binary(encode_control(&ClientMessage::Request {

@@ -279,3 +279,71 @@ impl Client {
         .await;
     }
 }
+
+/// `farfield-server serve` in a child process (this test binary, running
+/// `serve::serve_cli_child`), so its memory can be read from `/proc`
+/// apart from the tests'. Killed on drop.
+pub(crate) struct ChildServer {
+    pub(crate) child: std::process::Child,
+    pub(crate) addr: SocketAddr,
+    /// Its stdout after the address line.
+    pub(crate) lines: std::sync::mpsc::Receiver<String>,
+}
+
+impl ChildServer {
+    pub(crate) fn start(dir: &Path, extra_args: &str) -> Self {
+        use std::io::{BufRead, BufReader};
+        use std::process::{Command, Stdio};
+        let mut child = Command::new(std::env::current_exe().expect("test binary"))
+            .args(["serve::serve_cli_child", "--exact", "--nocapture"])
+            .env("FARFIELD_SERVE_CHILD_DIR", dir)
+            .env("FARFIELD_SERVE_CHILD_ARGS", extra_args)
+            .stdout(Stdio::piped())
+            .stderr(Stdio::null())
+            .spawn()
+            .expect("spawn");
+        let stdout = child.stdout.take().expect("stdout");
+        let (tx, rx) = std::sync::mpsc::channel();
+        std::thread::spawn(move || {
+            for line in BufReader::new(stdout).lines().map_while(Result::ok) {
+                if tx.send(line).is_err() {
+                    break;
+                }
+            }
+        });
+        let addr = loop {
+            let line = rx.recv_timeout(T).expect("no address printed");
+            if let Some(addr) = line.strip_prefix("listening on ") {
+                break addr.parse().expect("address");
+            }
+        };
+        Self {
+            child,
+            addr,
+            lines: rx,
+        }
+    }
+
+    /// A field of `/proc/PID/status` in KiB (`VmRSS`, `VmHWM`).
+    pub(crate) fn status_kib(&self, field: &str) -> u64 {
+        let status = std::fs::read_to_string(format!("/proc/{}/status", self.child.id()))
+            .expect("server process status");
+        status
+            .lines()
+            .find_map(|l| l.strip_prefix(field)?.strip_prefix(':'))
+            .and_then(|v| v.trim().trim_end_matches("kB").trim().parse().ok())
+            .unwrap_or_else(|| panic!("{field} missing from the status"))
+    }
+
+    /// Whether the process is still running.
+    pub(crate) fn alive(&mut self) -> bool {
+        matches!(self.child.try_wait(), Ok(None))
+    }
+}
+
+impl Drop for ChildServer {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
