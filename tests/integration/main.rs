@@ -5,6 +5,7 @@ mod adapter;
 mod bad_input;
 mod bench;
 mod cubes;
+mod degenerate;
 mod extremes;
 mod holes;
 mod kinds;
