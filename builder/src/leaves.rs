@@ -4,7 +4,9 @@
 //!   bounding sphere of the triangles around it, so the spheres of two
 //!   vertices joined by an edge always touch and the splats leave no holes.
 //!   The normal is the input's, or the area-weighted face normal; the
-//!   normal cone covers every incident face.
+//!   normal cone covers every incident face. Faces of zero area (repeated
+//!   or collinear corners, [`zero_area`]) have no surface and count for
+//!   nothing: a vertex only they use is left out like one no face uses.
 //! - Point clouds: radius and normal from the nearest neighbours ([`knn`]).
 //! - Spheres (atoms): their own radius, and no orientation.
 //!
@@ -14,6 +16,7 @@
 //! the peak memory of a build near the leaves' own size.
 //!
 //! [`knn`]: super::knn
+//! [`zero_area`]: super::zero_area
 
 use glam::{DAffine3, DVec3, Vec3};
 use rayon::prelude::*;
@@ -22,6 +25,7 @@ pub use farfield_protocol::octahedral::{pack_normal, unpack_normal};
 
 use super::progress::{Portion, Progress};
 use crate::scene::{Geometry, Primitives, Rgb8, Scene};
+use crate::zero_area::{face_with_area, zero_area};
 
 /// Color given to geometry without colors in a scene where others have them.
 pub const DEFAULT_COLOR: Rgb8 = [200, 200, 200];
@@ -46,7 +50,8 @@ pub struct Leaf {
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct LeafStats {
     pub input_vertices: u64,
-    /// Mesh vertices that no triangle uses; they have no size and are left out.
+    /// Mesh vertices that no triangle with an area uses; they have no size
+    /// and are left out.
     pub unreferenced_vertices: u64,
 }
 
@@ -228,7 +233,8 @@ const LEAVES_PER_TASK: usize = 1 << 12;
 /// Triangles walked between progress reports: a few milliseconds of work.
 const WALK_CHUNK: usize = 1 << 16;
 
-/// Vertices no triangle touched carry a negative radius until dropped.
+/// Vertices no triangle with an area touched carry a negative radius until
+/// dropped.
 fn is_unreferenced(leaf: &Leaf) -> bool {
     leaf.radius < 0.0
 }
@@ -236,7 +242,7 @@ fn is_unreferenced(leaf: &Leaf) -> bool {
 /// What the triangles around each vertex say about its leaf.
 struct VertexSizes {
     /// Largest bounding radius of the incident triangles, rounded up to
-    /// f32; -1 for none.
+    /// f32; -1 for none (zero-area triangles are not counted).
     radius: Vec<f32>,
     /// Unit vertex normal (the input's, or the area-weighted face normal);
     /// zero where there is none.
@@ -267,8 +273,8 @@ impl VertexSizes {
     }
 }
 
-/// Sizes mesh vertices from their triangles. Vertices no triangle uses get
-/// a negative radius (they are dropped).
+/// Sizes mesh vertices from their triangles, skipping those of zero area.
+/// Vertices no other triangle uses get a negative radius (they are dropped).
 ///
 /// The vertices are cut into one contiguous range per thread, and each
 /// thread walks all the triangles, doing the work of those corners that
@@ -394,7 +400,9 @@ impl VertexRange<'_> {
                 continue;
             }
             let [a, b, c] = tri.map(|i| positions[i as usize]);
-            let (r2, face) = squared_bounding_radius_and_face(a, b, c);
+            let Some((r2, face)) = face_sizing(a, b, c) else {
+                continue;
+            };
             let face = face.as_vec3(); // length = 2 * area
             for v in owned.into_iter().flatten() {
                 self.radius_squared[v] = self.radius_squared[v].max(r2);
@@ -413,7 +421,7 @@ impl VertexRange<'_> {
                 continue;
             }
             let [a, b, c] = tri.map(|i| positions[i as usize]);
-            let Some(face) = (b - a).cross(c - a).try_normalize() else {
+            let Some(face) = face_with_area(a, b, c).and_then(DVec3::try_normalize) else {
                 continue;
             };
             self.widen_cones(owned, face.as_vec3());
@@ -429,7 +437,9 @@ impl VertexRange<'_> {
                 continue;
             }
             let [a, b, c] = tri.map(|i| positions[i as usize]);
-            let (r2, face) = squared_bounding_radius_and_face(a, b, c);
+            let Some((r2, face)) = face_sizing(a, b, c) else {
+                continue;
+            };
             for v in owned.into_iter().flatten() {
                 self.radius_squared[v] = self.radius_squared[v].max(r2);
             }
@@ -463,12 +473,24 @@ pub fn triangle_bounding_radius(a: DVec3, b: DVec3, c: DVec3) -> f64 {
     squared_bounding_radius_and_face(a, b, c).0.sqrt()
 }
 
-/// The square of [`triangle_bounding_radius`] and the face vector
+/// What a face gives its corners' leaves: the square of its bounding
+/// radius and its face vector; nothing for a face of zero area, whose
+/// bounding sphere (half its longest edge) would size its corners by its
+/// length and whose rounding-noise normal would bend theirs.
+#[inline]
+fn face_sizing(a: DVec3, b: DVec3, c: DVec3) -> Option<(f64, DVec3)> {
+    let (squared, face, longest) = squared_bounding_radius_and_face(a, b, c);
+    (!zero_area(face.length_squared(), longest)).then_some((squared, face))
+}
+
+/// The square of [`triangle_bounding_radius`], the face vector
 /// `(b - a) x (c - a)` (its length is twice the area), sharing the cross
-/// product. No square root: the circumradius R = |ab| |bc| |ca| / (4 area)
-/// is taken as |ab|² |bc|² |ca|² / (4 |face|²), and callers take the root
-/// once per vertex, of the largest square.
-fn squared_bounding_radius_and_face(a: DVec3, b: DVec3, c: DVec3) -> (f64, DVec3) {
+/// product, and the square of the longest edge (for the zero-area test).
+/// No square root: the circumradius R = |ab| |bc| |ca| / (4 area) is taken
+/// as |ab|² |bc|² |ca|² / (4 |face|²), and callers take the root once per
+/// vertex, of the largest square.
+#[inline]
+fn squared_bounding_radius_and_face(a: DVec3, b: DVec3, c: DVec3) -> (f64, DVec3, f64) {
     let face = (b - a).cross(c - a);
     let (ab, bc, ca) = (
         a.distance_squared(b),
@@ -485,7 +507,7 @@ fn squared_bounding_radius_and_face(a: DVec3, b: DVec3, c: DVec3) -> (f64, DVec3
     } else {
         (ab * bc * ca / (4.0 * twice_area_squared)).max(half_longest_squared)
     };
-    (squared, face)
+    (squared, face, longest)
 }
 
 /// An upper bound on `acos(x)` within 2e-4 radians, without a libm call
@@ -620,14 +642,7 @@ mod tests {
                 )
             })
             .collect();
-        let mut triangles = Vec::new();
-        for v in 0..side - 1 {
-            for u in 0..side - 1 {
-                let i = v * side + u;
-                triangles.push([i, i + 1, i + side]);
-                triangles.push([i + 1, i + side + 1, i + side]);
-            }
-        }
+        let mut triangles = crate::grid_triangles(side);
         triangles.reverse();
         (positions, triangles)
     }

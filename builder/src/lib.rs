@@ -24,6 +24,7 @@ pub mod layout;
 pub mod leaves;
 pub mod progress;
 pub mod tree;
+pub mod zero_area;
 
 use std::time::Instant;
 
@@ -101,7 +102,9 @@ pub struct BuildStats {
 /// Why a scene could not be built.
 #[derive(Debug, thiserror::Error)]
 pub enum BuildError {
-    #[error("the scene has no vertices to build from")]
+    /// Nothing to build: no points, no spheres, and no triangle with an
+    /// area (a mesh of zero-area faces alone has no surface).
+    #[error("the scene has nothing to build from: no points, spheres or triangles with an area")]
     Empty,
     #[error("the scene has {0} vertices; this format holds at most 2^31 - 1 leaves")]
     TooLarge(u64),
@@ -241,6 +244,21 @@ fn apply_radius_floor(leaves: &mut [leaves::Leaf], measured: &Measured) {
             l.radius = floor;
         }
     }
+}
+
+/// The triangles of a `side` x `side` grid of vertices numbered row by row,
+/// each square cut in two along the same diagonal, for tests.
+#[cfg(test)]
+pub(crate) fn grid_triangles(side: u32) -> Vec<[u32; 3]> {
+    let mut triangles = Vec::new();
+    for v in 0..side - 1 {
+        for u in 0..side - 1 {
+            let i = v * side + u;
+            triangles.push([i, i + 1, i + side]);
+            triangles.push([i + 1, i + side + 1, i + side]);
+        }
+    }
+    triangles
 }
 
 /// A deterministic source of numbers in [0, 1) for tests (xorshift64).

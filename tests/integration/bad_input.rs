@@ -3,8 +3,10 @@
 
 use std::path::Path;
 
+use farfield_builder::cubes::{CubeOptions, build_cubes};
 use farfield_builder::import::{Params, load_input};
 use farfield_builder::scene::{Geometry, Primitives, Scene};
+use farfield_builder::{BuildError, BuildOptions, build_spheres};
 use farfield_tests::{scratch, shared_data};
 use glam::DVec3;
 
@@ -149,25 +151,36 @@ fn identical_duplicate_and_degenerate_inputs_are_handled() {
     assert_eq!(file.header.leaves, 1);
     assert_eq!(file.header.input_vertices, 1_000_000);
 
-    // Zero-area triangles: every vertex of a collinear strip or a point.
-    let positions = vec![
-        DVec3::ZERO,
-        DVec3::X,
-        DVec3::X * 2.0,
-        DVec3::ONE,
-        DVec3::ONE,
-        DVec3::ONE,
-    ];
-    let scene = Scene::single(Geometry::new(
+    // Zero-area triangles (a collinear strip, a point) have no surface:
+    // alone they are nothing to build, with either builder ...
+    let flat = Geometry::new(
         "flat",
-        positions,
+        vec![
+            DVec3::ZERO,
+            DVec3::X,
+            DVec3::X * 2.0,
+            DVec3::ONE,
+            DVec3::ONE,
+            DVec3::ONE,
+        ],
         Primitives::Triangles(vec![[0, 1, 2], [3, 4, 5]]),
-    ));
-    let file = build(scene);
-    let nodes = resident(&file).decode_all();
-    assert_eq!(
-        file.header.leaves, 4,
-        "three distinct points on the line plus the collapsed point"
     );
+    let spheres = build_spheres(Scene::single(flat.clone()), &BuildOptions::default());
+    assert!(matches!(spheres, Err(BuildError::Empty)), "{spheres:?}");
+    let cubes = build_cubes(Scene::single(flat.clone()), &CubeOptions::default());
+    assert!(matches!(cubes, Err(BuildError::Empty)), "{cubes:?}");
+    // ... and beside a real triangle they add no leaf: its three corners.
+    let mut mixed = flat;
+    mixed.positions.extend([
+        DVec3::Z * 5.0,
+        DVec3::new(1.0, 0.0, 5.0),
+        DVec3::new(0.0, 1.0, 5.0),
+    ]);
+    if let Primitives::Triangles(t) = &mut mixed.primitives {
+        t.push([6, 7, 8]);
+    }
+    let file = build(Scene::single(mixed));
+    let nodes = resident(&file).decode_all();
+    assert_eq!(file.header.leaves, 3, "the real triangle's corners only");
     assert!(nodes.iter().all(|n| n.center.is_finite() && n.radius > 0.0));
 }

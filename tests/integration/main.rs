@@ -6,6 +6,7 @@ mod bad_input;
 mod bench;
 mod crowd;
 mod cubes;
+mod degenerate;
 mod extremes;
 mod holes;
 mod kinds;

@@ -140,7 +140,8 @@ pub fn build_cubes(
         channels,
         root_min,
     };
-    let input_primitives = refs.len() as u64;
+    // Counted from the scene: zero-area triangles have no reference.
+    let input_primitives = scene.instanced_primitive_count();
     let root =
         octree::build_cell(&src, refs, root_min, edge, 0, &settings).ok_or(BuildError::Empty)?;
     let seconds_octree = started.elapsed().as_secs_f64();

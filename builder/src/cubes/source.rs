@@ -5,12 +5,20 @@
 //! Instances are expanded as references (instance, primitive), never as
 //! copies of the geometry, so a forest of one instanced tree costs a
 //! reference per triangle, not a mesh per tree.
+//!
+//! Triangles of zero area ([`zero_area`]) get no reference: they cover no
+//! sample of a cube face, so they would only cost (deepening the octree
+//! along them, a long one across the whole scene), widen the bounds and be
+//! stored as leaf geometry that draws nothing.
+//!
+//! [`zero_area`]: crate::zero_area
 
 use glam::{DMat3, DVec3, Vec3};
 
 use crate::leaves::max_stretch;
 
 use crate::scene::{Primitives, Rgb8, Scene};
+use crate::zero_area::is_zero_area;
 
 /// Triangles a sphere (an atom) is drawn with: an icosahedron subdivided
 /// twice. The 1996 paper drew its atoms with 800 polygons.
@@ -97,7 +105,8 @@ impl<'a> Source<'a> {
         self.scene.has_color()
     }
 
-    /// Every primitive of every instance with its world bounds.
+    /// Every primitive of every instance with its world bounds, but for
+    /// triangles of zero area (in world space: what is drawn).
     pub fn refs(&self) -> Vec<PrimRef> {
         let mut out = Vec::with_capacity(self.scene.instanced_primitive_count() as usize);
         for (k, inst) in self.scene.instances.iter().enumerate() {
@@ -107,6 +116,9 @@ impl<'a> Source<'a> {
                 Primitives::Triangles(tris) => {
                     for (i, tri) in tris.iter().enumerate() {
                         let p = tri.map(|v| t.transform_point3(g.positions[v as usize]));
+                        if is_zero_area(p[0], p[1], p[2]) {
+                            continue;
+                        }
                         out.push(PrimRef {
                             instance: k as u32,
                             index: i as u32,

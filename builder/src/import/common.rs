@@ -4,6 +4,8 @@
 use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 
+use crate::zero_area::is_zero_area;
+
 /// Fan-triangulates a convex polygon: `(p0, p[i], p[i+1])`.
 pub(crate) fn fan(polygon: &[u32], out: &mut Vec<[u32; 3]>) {
     if let Some((&first, rest)) = polygon.split_first() {
@@ -17,9 +19,10 @@ pub(crate) fn unit_color(v: f64) -> u8 {
 }
 
 /// Normalizes input normals. A zero or non-finite normal is replaced by the
-/// area-weighted normal of the triangles around its vertex (or +Z where
-/// those are degenerate too); without triangles such a normal drops all
-/// normals, and the builder estimates them from neighbours instead.
+/// area-weighted normal of the triangles around its vertex, zero-area ones
+/// left out as the leaf sizing leaves them out (or +Z where there are none
+/// with an area); without triangles such a normal drops all normals, and
+/// the builder estimates them from neighbours instead.
 pub(crate) fn unit_normals(
     mut normals: Vec<Vec3>,
     positions: &[DVec3],
@@ -56,6 +59,9 @@ pub(crate) fn unit_normals(
     let mut sums = vec![DVec3::ZERO; positions.len()];
     for t in triangles {
         let p = t.map(|i| positions.get(i as usize).copied().unwrap_or_default());
+        if is_zero_area(p[0], p[1], p[2]) {
+            continue;
+        }
         let n = (p[1] - p[0]).cross(p[2] - p[0]);
         for &i in t {
             if let Some(s) = sums.get_mut(i as usize) {
