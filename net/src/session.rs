@@ -132,6 +132,10 @@ pub struct Session<T: Transport> {
     requested: HashMap<u32, f32>,
     /// Per page that failed: how often, and the last reason.
     failures: HashMap<u32, (u32, String)>,
+    /// The last error about the scene itself (a page, a server message), which
+    /// still stands after a reconnect; `stats.last_error` goes back to it
+    /// once a lost connection is back.
+    last_scene_error: Option<String>,
     pub stats: NetStats,
 }
 
@@ -150,6 +154,7 @@ impl<T: Transport> Session<T> {
             header: None,
             requested: HashMap::new(),
             failures: HashMap::new(),
+            last_scene_error: None,
             stats: NetStats::default(),
         }
     }
@@ -302,6 +307,7 @@ impl<T: Transport> Session<T> {
                 ServerMessage::Error { message, fatal } => {
                     tracing::warn!("server: {message}");
                     self.stats.last_error = Some(message.clone());
+                    self.last_scene_error = Some(message.clone());
                     if fatal {
                         return Ok(Err(SessionError::Server(message)));
                     }
@@ -310,6 +316,7 @@ impl<T: Transport> Session<T> {
                     tracing::warn!("giving up page {page}: {reason}");
                     self.stats.pages_unavailable += 1;
                     self.stats.last_error = Some(reason.clone());
+                    self.last_scene_error = Some(reason.clone());
                     self.requested.remove(&page);
                     // Given up at once: the server's copy will not heal.
                     self.failures.insert(page, (MAX_PAGE_FAILURES, reason));
@@ -331,6 +338,8 @@ impl<T: Transport> Session<T> {
         }
         self.link = Link::Open { header: true };
         self.requested.clear();
+        // Connected again: what went wrong with the connection is over.
+        self.stats.last_error = self.last_scene_error.clone();
         Ok(())
     }
 
@@ -390,7 +399,8 @@ impl<T: Transport> Session<T> {
         tracing::warn!(
             "page {index} rejected ({error}); attempt {failures} of {MAX_PAGE_FAILURES}"
         );
-        self.stats.last_error = Some(reason);
+        self.stats.last_error = Some(reason.clone());
+        self.last_scene_error = Some(reason);
     }
 
     /// Sends new wishes and cancels stale ones. `wanted` is the traversal's

@@ -5,12 +5,16 @@
 //! stored bytes) read straight into the frame, so sending a cached page to
 //! any number of clients is a reference-count increment, never a copy or a
 //! re-encode. A page's checksum is verified once, when it enters the cache;
-//! a page that fails is reported and never cached or sent.
+//! a page that fails is reported and never cached or sent, and its verdict
+//! is kept: asked for again, it is not read again, and the warning in the
+//! log is written once per page, not once per request.
 
+use std::collections::HashMap;
 use std::sync::atomic::Ordering;
 use std::sync::{Arc, Mutex};
 
 use axum::body::Bytes;
+use farfield_protocol::FormatError;
 use farfield_protocol::messages::FrameKind;
 use farfield_store::PageError;
 use lru::LruCache;
@@ -21,11 +25,18 @@ use super::metrics::Metrics;
 /// (scene id, page index).
 pub type PageKey = (u32, u32);
 
+/// Verdicts on corrupt pages kept at most; past it they are forgotten all
+/// at once (and found again by the next read), which bounds the memory a
+/// folder of broken files can cost.
+pub const MAX_VERDICTS: usize = 1 << 16;
+
 /// A byte-bounded LRU of page frames.
 #[derive(Debug)]
 pub struct PageCache {
     inner: Mutex<Inner>,
     capacity: u64,
+    /// Pages that failed verification, and why.
+    verdicts: Mutex<HashMap<PageKey, FormatError>>,
 }
 
 #[derive(Debug)]
@@ -45,6 +56,7 @@ impl PageCache {
                 bytes: 0,
             }),
             capacity,
+            verdicts: Mutex::new(HashMap::new()),
         }
     }
 
@@ -97,8 +109,26 @@ impl PageCache {
         page: u32,
         metrics: &Metrics,
     ) -> Result<Bytes, PageError> {
+        let key = (scene.id, page);
+        let known = self
+            .verdicts
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .get(&key)
+            .cloned();
+        if let Some(error) = known {
+            return Err(PageError::Format(error));
+        }
         let frame = read_verified(scene, page).inspect_err(|e| match e {
-            PageError::Format(_) => Metrics::add(&metrics.corrupt_pages, 1),
+            PageError::Format(error) => {
+                Metrics::add(&metrics.corrupt_pages, 1);
+                tracing::warn!(scene = %scene.name, page, "corrupt page, never sent: {error}");
+                let mut verdicts = self.verdicts.lock().unwrap_or_else(|e| e.into_inner());
+                if verdicts.len() >= MAX_VERDICTS {
+                    verdicts.clear();
+                }
+                verdicts.insert(key, error.clone());
+            }
             PageError::Changed(why) => {
                 scene.retire(&format!("its file changed on disk: {why}"));
             }

@@ -35,7 +35,43 @@ pub(crate) fn router(state: Arc<AppState>) -> Router {
         .route("/scenes/{name}", get(one))
         .route("/scenes/{name}/stream", get(stream))
         .fallback(fallback)
+        .layer(axum::middleware::map_response(json_errors))
         .with_state(state)
+}
+
+/// Every error status leaves with a JSON `{"error": ...}` body, whoever
+/// made it (a handler, a rejected extractor, the router's 405): scripts and
+/// the client read one shape. The original text becomes the message.
+async fn json_errors(response: Response) -> Response {
+    let status = response.status();
+    let is_json = response
+        .headers()
+        .get(header::CONTENT_TYPE)
+        .is_some_and(|v| v.as_bytes().starts_with(b"application/json"));
+    if !(status.is_client_error() || status.is_server_error()) || is_json {
+        return response;
+    }
+    let (parts, body) = response.into_parts();
+    let text = axum::body::to_bytes(body, 4096)
+        .await
+        .map(|b| String::from_utf8_lossy(&b).trim().to_owned())
+        .unwrap_or_default();
+    let message = if text.is_empty() {
+        status
+            .canonical_reason()
+            .unwrap_or("error")
+            .to_ascii_lowercase()
+    } else {
+        text
+    };
+    let mut json = (status, Json(json!({ "error": message }))).into_response();
+    // Headers that say more (Allow on a 405, WWW-Authenticate on a 401).
+    for (name, value) in &parts.headers {
+        if name != header::CONTENT_TYPE && name != header::CONTENT_LENGTH {
+            json.headers_mut().insert(name, value.clone());
+        }
+    }
+    json
 }
 
 fn not_found(message: String) -> Response {

@@ -710,7 +710,8 @@ async fn write_loop(
                     // Retired by the read: the next action ends the session.
                     Err(PageError::Changed(_)) => continue,
                     Err(e) => {
-                        tracing::warn!(scene = %scene.name, page = next.page, "not sent: {e}");
+                        // The cache warned once, when it found the page bad.
+                        tracing::debug!(scene = %scene.name, page = next.page, "not sent: {e}");
                         let mut st = shared.lock();
                         st.schedule.unsend(next.page);
                         st.stats.corrupt += 1;

@@ -10,7 +10,7 @@ use farfield_protocol::FormatError;
 use farfield_protocol::file::FileHeader;
 
 /// Why a page could not be read.
-#[derive(Debug, thiserror::Error)]
+#[derive(Debug, Clone, thiserror::Error)]
 pub enum PageError {
     /// The page's bytes are not a valid page of this scene.
     #[error(transparent)]

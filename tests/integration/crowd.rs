@@ -23,6 +23,55 @@ fn median(mut v: Vec<Duration>) -> Duration {
     v[v.len() / 2]
 }
 
+/// The idle connections, and the task writing the slowloris ones a byte
+/// every half second.
+struct Crowd {
+    idle: Vec<TcpStream>,
+    stop: std::sync::Arc<std::sync::atomic::AtomicBool>,
+    slowloris: tokio::task::JoinHandle<usize>,
+}
+
+impl Crowd {
+    async fn gather(addr: SocketAddr) -> Self {
+        let mut idle = Vec::with_capacity(IDLE);
+        for i in 0..IDLE {
+            idle.push(connect_from([127, 0, 0, 2 + (i / 50) as u8], addr).await);
+        }
+        let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+        let mut slow = Vec::with_capacity(SLOWLORIS);
+        for _ in 0..SLOWLORIS {
+            slow.push(connect_from([127, 0, 0, 100], addr).await);
+        }
+        let slowloris = tokio::spawn({
+            let stop = stop.clone();
+            async move {
+                let head = b"GET /scenes HTTP/1.1\r\nHost: x\r\nX-Slow: ";
+                let mut written = 0usize;
+                while !stop.load(std::sync::atomic::Ordering::Relaxed) {
+                    let byte = head.get(written).copied().unwrap_or(b'a');
+                    for c in &mut slow {
+                        let _ = c.write_all(&[byte]).await;
+                    }
+                    written += 1;
+                    tokio::time::sleep(Duration::from_millis(500)).await;
+                }
+                slow.len()
+            }
+        });
+        Self {
+            idle,
+            stop,
+            slowloris,
+        }
+    }
+
+    async fn disperse(self) {
+        self.stop.store(true, std::sync::atomic::Ordering::Relaxed);
+        assert_eq!(self.slowloris.await.expect("slowloris task"), SLOWLORIS);
+        drop(self.idle);
+    }
+}
+
 #[cfg(target_os = "linux")]
 #[test]
 fn a_client_renders_beside_1000_idle_and_50_slowloris_connections() {
@@ -45,57 +94,32 @@ fn a_client_renders_beside_1000_idle_and_50_slowloris_connections() {
         started.elapsed()
     };
     timed(&mut renderer);
-    let alone = median((0..3).map(|_| timed(&mut renderer)).collect());
-
-    let idle: Vec<TcpStream> = rt.block_on(async {
-        let mut out = Vec::with_capacity(IDLE);
-        for i in 0..IDLE {
-            out.push(connect_from([127, 0, 0, 2 + (i / 50) as u8], addr).await);
+    // Rounds alternate, alone then beside the crowd, so whatever else the
+    // machine does falls on both; the medians are compared.
+    let (mut alone, mut crowded, mut held) = (Vec::new(), Vec::new(), u64::MAX);
+    for _ in 0..5 {
+        alone.push(timed(&mut renderer));
+        let crowd = rt.block_on(Crowd::gather(addr));
+        let deadline = Instant::now() + Duration::from_secs(10);
+        while server.metrics().open_connections < (IDLE + SLOWLORIS) as u64 {
+            assert!(
+                Instant::now() < deadline,
+                "crowd not admitted: {:?}",
+                server.metrics()
+            );
+            std::thread::sleep(Duration::from_millis(20));
         }
-        out
-    });
-    let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
-    let slow = rt.spawn({
-        let stop = stop.clone();
-        async move {
-            let mut conns = Vec::with_capacity(SLOWLORIS);
-            for _ in 0..SLOWLORIS {
-                conns.push(connect_from([127, 0, 0, 100], addr).await);
-            }
-            let head = b"GET /scenes HTTP/1.1\r\nHost: x\r\nX-Slow: ";
-            let mut written = 0usize;
-            while !stop.load(std::sync::atomic::Ordering::Relaxed) {
-                let byte = head.get(written).copied().unwrap_or(b'a');
-                for c in &mut conns {
-                    let _ = c.write_all(&[byte]).await;
-                }
-                written += 1;
-                tokio::time::sleep(Duration::from_millis(500)).await;
-            }
-            conns.len()
-        }
-    });
-    // Every crowd connection is admitted and held before the client runs.
-    let deadline = Instant::now() + Duration::from_secs(10);
-    while server.metrics().open_connections < (IDLE + SLOWLORIS) as u64 {
-        assert!(
-            Instant::now() < deadline,
-            "crowd not admitted: {:?}",
-            server.metrics()
-        );
-        std::thread::sleep(Duration::from_millis(20));
+        crowded.push(timed(&mut renderer));
+        held = held.min(server.metrics().open_connections);
+        rt.block_on(crowd.disperse());
     }
-    let crowded = median((0..3).map(|_| timed(&mut renderer)).collect());
-    let open = server.metrics().open_connections;
-    stop.store(true, std::sync::atomic::Ordering::Relaxed);
-    assert_eq!(rt.block_on(slow).expect("slowloris task"), SLOWLORIS);
-    drop(idle);
+    let (alone, crowded) = (median(alone), median(crowded));
     eprintln!(
-        "render alone {alone:?}, beside {IDLE} idle and {SLOWLORIS} slowloris connections {crowded:?} ({open} connections open)"
+        "render alone {alone:?}, beside {IDLE} idle and {SLOWLORIS} slowloris connections {crowded:?} (medians of 5; at least {held} connections open)"
     );
     assert!(
-        open >= (IDLE + SLOWLORIS) as u64,
-        "the crowd was let go during the render: {open} open"
+        held >= (IDLE + SLOWLORIS) as u64,
+        "the crowd was let go during a render: {held} open"
     );
     assert!(
         crowded <= alone * 2,

@@ -349,6 +349,8 @@ fn a_client_survives_a_server_restart_and_finishes_correctly() {
         done.report.net.disconnects >= 1,
         "the client never noticed the restart"
     );
+    // Recovered: the report says nothing is wrong now.
+    assert_eq!(done.report.last_error, None, "after recovering");
     let p = psnr(&done.rgba, &file.rgba);
     assert!(p >= 40.0, "after a restart the image differs: PSNR {p}");
     rt.block_on(server.shutdown()).unwrap();
@@ -554,5 +556,36 @@ fn sessions_driven_as_tasks_fetch_every_page() {
             "every page arrived within 30 s"
         );
     }
+    rt.block_on(server.shutdown()).unwrap();
+}
+
+/// Page 0 corrupt on the server: nothing can be drawn, so the render is
+/// not refined, says why, and stops without waiting for its timeout. (It
+/// reported `refined: true` over an empty image.)
+#[test]
+fn a_root_page_that_never_arrives_is_not_refined() {
+    let Some(mut renderer) = headless_or_skip(SIZE.0, SIZE.1).unwrap() else {
+        return;
+    };
+    let (dir, _) = scenes("root-corrupt-on-server");
+    let path = dir.join("island.ff");
+    let mut bytes = std::fs::read(&path).unwrap();
+    let header = FileHeader::decode(&bytes).unwrap();
+    bytes[header.pages[0].offset as usize + 40] ^= 0x10;
+    std::fs::write(&path, &bytes).unwrap();
+    let rt = runtime();
+    let server = serve(&rt, &dir, 0);
+    let j = island_from(format!("http://{}", server.local_addr()));
+    let started = Instant::now();
+    let r = run(&j, &mut renderer, false).expect("render");
+    assert!(
+        started.elapsed() < Duration::from_secs(30),
+        "waited {:?} for a root that cannot come",
+        started.elapsed()
+    );
+    assert!(!r.report.refined, "refined over nothing");
+    let why = r.report.last_error.clone().unwrap_or_default();
+    assert!(why.contains("page 0"), "{why}");
+    assert_eq!(r.report.nodes_drawn, 0);
     rt.block_on(server.shutdown()).unwrap();
 }

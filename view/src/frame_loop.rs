@@ -225,7 +225,14 @@ impl Settle {
                 .iter()
                 .filter(|w| !viewer.gave_up(w.page))
                 .count();
-            let refined = missing == 0 && self.threshold <= self.final_threshold;
+            // Without the root nothing is drawn, however few pages are
+            // missing; and once it is given up nothing more can come.
+            let root = viewer.hierarchy().is_some_and(|h| h.is_resident(0));
+            if !root && viewer.gave_up(0) {
+                self.error = Some(viewer.with_last_error("page 0, the root, never arrived".into()));
+                return Ok(());
+            }
+            let refined = root && missing == 0 && self.threshold <= self.final_threshold;
             if refined && self.time_to_refined_ms.is_none() {
                 self.time_to_refined_ms = Some(self.started.elapsed().as_secs_f64() * 1e3);
             }
