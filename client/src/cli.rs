@@ -238,6 +238,13 @@ pub struct RenderArgs {
     /// Let the server push pages it predicts when idle.
     #[arg(long)]
     pub push: bool,
+    /// The server's access token (see `farfield-server serve --token`).
+    #[arg(long, value_name = "TOKEN")]
+    pub token: Option<String>,
+    /// Trust this certificate authority (PEM) for an https:// server, in
+    /// place of the public roots: a private or self-signed server.
+    #[arg(long, value_name = "PEM")]
+    pub ca_cert: Option<std::path::PathBuf>,
     /// Give up after this many seconds (the image so far is still written).
     #[arg(long, default_value_t = 120.0)]
     pub timeout_s: f64,

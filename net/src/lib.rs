@@ -32,4 +32,4 @@ mod tests;
 pub use session::{MAX_PAGE_FAILURES, Session, SessionError, SessionEvent, SessionOptions};
 pub use stats::{FailedPage, NetStats};
 pub use transport::{Closing, Transport, TransportEvent};
-pub use url::stream_url;
+pub use url::{stream_url, with_token};

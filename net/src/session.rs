@@ -50,8 +50,9 @@ fn hello(options: &SessionOptions) -> Vec<u8> {
 }
 
 /// What a client announces in its hello (`max_in_flight_bytes`,
-/// `allow_push`), and how long it tries to connect at first.
-#[derive(Debug, Clone, Copy)]
+/// `allow_push`), how long it tries to connect at first, and what it shows
+/// a server that wants a token or speaks TLS with a private certificate.
+#[derive(Debug, Clone)]
 pub struct SessionOptions {
     pub max_in_flight_bytes: u64,
     pub allow_push: bool,
@@ -60,6 +61,12 @@ pub struct SessionOptions {
     /// at the render's timeout. Once connected, a session retries for as
     /// long as its owner waits (servers restart).
     pub first_connect_grace: Duration,
+    /// The server's access token, sent as the `access_token` query
+    /// parameter (what a browser's `WebSocket` can send too).
+    pub token: Option<String>,
+    /// A certificate authority (PEM) to trust for `wss://` servers instead
+    /// of the public roots; the native transport only.
+    pub ca_cert: Option<std::path::PathBuf>,
 }
 
 impl Default for SessionOptions {
@@ -68,6 +75,8 @@ impl Default for SessionOptions {
             max_in_flight_bytes: 4 << 20,
             allow_push: false,
             first_connect_grace: Duration::from_secs(10),
+            token: None,
+            ca_cert: None,
         }
     }
 }
@@ -143,13 +152,14 @@ impl<T: Transport> Session<T> {
     /// Starts connecting to `url` (see [`crate::stream_url`]).
     pub fn open(mut transport: T, url: String, options: SessionOptions) -> Self {
         transport.connect(&url, hello(&options));
+        let first_deadline = Instant::now() + options.first_connect_grace;
         Self {
             transport,
             url,
             options,
             link: Link::Connecting,
             connected_once: false,
-            first_deadline: Instant::now() + options.first_connect_grace,
+            first_deadline,
             backoff: FIRST_BACKOFF,
             header: None,
             requested: HashMap::new(),

@@ -1,5 +1,23 @@
 //! Where a scene streams from: the one place its URL is spelled.
 
+/// `url` with the access token `token` added as its `access_token` query
+/// parameter (percent-encoded), or `url` itself without one.
+pub fn with_token(url: &str, token: Option<&str>) -> String {
+    let Some(token) = token else {
+        return url.to_owned();
+    };
+    let mut encoded = String::with_capacity(token.len());
+    for b in token.bytes() {
+        if b.is_ascii_alphanumeric() || b"-._~".contains(&b) {
+            encoded.push(char::from(b));
+        } else {
+            encoded.push_str(&format!("%{b:02X}"));
+        }
+    }
+    let sep = if url.contains('?') { '&' } else { '?' };
+    format!("{url}{sep}access_token={encoded}")
+}
+
 /// The websocket URL of a scene's stream. `server` is `http://host:port`,
 /// `https://host:port`, `ws://...`, `wss://...` or a bare `host:port`.
 pub fn stream_url(server: &str, scene: &str) -> String {
@@ -27,6 +45,10 @@ mod tests {
 
     #[test]
     fn urls() {
+        assert_eq!(
+            with_token("ws://h/s", Some("a b/é")),
+            "ws://h/s?access_token=a%20b%2F%C3%A9"
+        );
         assert_eq!(
             stream_url("http://127.0.0.1:80/", "a"),
             "ws://127.0.0.1:80/scenes/a/stream"

@@ -13,7 +13,7 @@
 
 use std::future::Future;
 use std::pin::Pin;
-use std::sync::mpsc;
+use std::sync::{Arc, mpsc};
 use std::time::Duration;
 
 use bytes::Bytes;
@@ -33,6 +33,8 @@ pub struct WebSocketTransport {
     /// Ends the runtime's thread when dropped.
     _stop: oneshot::Sender<()>,
     current: Option<Connection>,
+    /// For `wss://`: the roots to trust (the webpki roots when `None`).
+    tls: Option<Arc<rustls::ClientConfig>>,
 }
 
 #[derive(Debug)]
@@ -43,8 +45,17 @@ struct Connection {
 }
 
 impl WebSocketTransport {
-    /// Starts the transport's thread.
+    /// Starts the transport's thread; `wss://` servers are checked
+    /// against the usual public roots.
     pub fn new() -> std::io::Result<Self> {
+        Self::trusting(None)
+    }
+
+    /// Like [`WebSocketTransport::new`], but a `wss://` server's certificate
+    /// must chain to the authority in `ca_cert` (PEM) instead: a private or
+    /// self-signed server.
+    pub fn trusting(ca_cert: Option<&std::path::Path>) -> std::io::Result<Self> {
+        let tls = ca_cert.map(client_config).transpose()?;
         let runtime = tokio::runtime::Builder::new_current_thread()
             .enable_all()
             .build()?;
@@ -60,6 +71,7 @@ impl WebSocketTransport {
             runtime: handle,
             _stop: stop,
             current: None,
+            tls,
         })
     }
 }
@@ -79,7 +91,12 @@ impl Transport for WebSocketTransport {
         let _ = outgoing.send(hello);
         let task = self
             .runtime
-            .spawn(connection(url.to_owned(), event_tx, out_rx))
+            .spawn(connection(
+                url.to_owned(),
+                self.tls.clone(),
+                event_tx,
+                out_rx,
+            ))
             .abort_handle();
         self.current = Some(Connection {
             events,
@@ -143,10 +160,11 @@ impl Transport for WebSocketTransport {
 /// ends it. Always ends by reporting [`TransportEvent::Closed`].
 async fn connection(
     url: String,
+    tls: Option<Arc<rustls::ClientConfig>>,
     events: mpsc::Sender<TransportEvent>,
     mut outgoing: async_mpsc::UnboundedReceiver<Vec<u8>>,
 ) {
-    let (reason, how) = match run(&url, &events, &mut outgoing).await {
+    let (reason, how) = match run(&url, tls, &events, &mut outgoing).await {
         Ok(()) => return,
         Err(end) => end,
     };
@@ -156,10 +174,11 @@ async fn connection(
 /// `Ok` when the receiver went away; otherwise why the connection ended.
 async fn run(
     url: &str,
+    tls: Option<Arc<rustls::ClientConfig>>,
     events: &mpsc::Sender<TransportEvent>,
     outgoing: &mut async_mpsc::UnboundedReceiver<Vec<u8>>,
 ) -> Result<(), (String, Closing)> {
-    let socket = open(url).await?;
+    let socket = open(url, tls).await?;
     if events.send(TransportEvent::Opened).is_err() {
         return Ok(());
     }
@@ -185,11 +204,35 @@ async fn run(
 /// A client websocket.
 type Socket = WebSocketStream<MaybeTlsStream<tokio::net::TcpStream>>;
 
+/// A TLS client configuration that trusts only the authorities in
+/// `ca_cert` (PEM).
+fn client_config(ca_cert: &std::path::Path) -> std::io::Result<Arc<rustls::ClientConfig>> {
+    use rustls::pki_types::CertificateDer;
+    use rustls::pki_types::pem::PemObject;
+    let bad = |e: String| std::io::Error::other(format!("{}: {e}", ca_cert.display()));
+    let mut roots = rustls::RootCertStore::empty();
+    for cert in CertificateDer::pem_file_iter(ca_cert).map_err(|e| bad(e.to_string()))? {
+        let cert = cert.map_err(|e| bad(e.to_string()))?;
+        roots.add(cert).map_err(|e| bad(e.to_string()))?;
+    }
+    if roots.is_empty() {
+        return Err(bad("no certificate in it".into()));
+    }
+    let config = rustls::ClientConfig::builder()
+        .with_root_certificates(roots)
+        .with_no_client_auth();
+    Ok(Arc::new(config))
+}
+
 /// Connects to `url`; the error is why, and whether the server refused.
-async fn open(url: &str) -> Result<Socket, (String, Closing)> {
+async fn open(
+    url: &str,
+    tls: Option<Arc<rustls::ClientConfig>>,
+) -> Result<Socket, (String, Closing)> {
     // No Nagle: requests and acknowledgements are small and must not sit
     // waiting for the server's delayed ACKs (40 ms a round trip otherwise).
-    match tokio_tungstenite::connect_async_with_config(url, None, true).await {
+    let connector = tls.map(tokio_tungstenite::Connector::Rustls);
+    match tokio_tungstenite::connect_async_tls_with_config(url, None, true, connector).await {
         Ok((socket, _)) => Ok(socket),
         Err(e) => Err(match refusal(url, &e) {
             Some(reason) => (reason, Closing::Refused),
@@ -247,7 +290,7 @@ pub async fn drive(
         }
         if let Some(url) = wire.take_connect() {
             socket = None;
-            connecting = Some(Box::pin(async move { open(&url).await }));
+            connecting = Some(Box::pin(async move { open(&url, None).await }));
         }
         if let Some(attempt) = connecting.as_mut()
             && let Ok(opened) = tokio::time::timeout(TICK, attempt).await

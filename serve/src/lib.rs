@@ -20,6 +20,7 @@
 //! - `routes`: the HTTP endpoints;
 //! - [`metrics`]: atomics and the Prometheus text.
 
+pub mod access;
 mod admission;
 pub mod cache;
 pub mod catalog;
@@ -32,6 +33,7 @@ pub mod rlimit;
 mod routes;
 pub mod schedule;
 mod session;
+pub mod tls;
 
 use std::net::SocketAddr;
 use std::path::PathBuf;
@@ -42,6 +44,7 @@ use std::time::Duration;
 use tokio::sync::{Notify, watch};
 use tokio::task::JoinHandle;
 
+use self::access::Access;
 use self::admission::Admission;
 use self::cache::PageCache;
 use self::catalog::Catalog;
@@ -49,6 +52,7 @@ use self::limits::Limits;
 use self::metrics::{Metrics, MetricsSnapshot};
 use self::prefetch::Prefetcher;
 use self::rescan::{DEFAULT_RESCAN_INTERVAL, Origin, Rescanner};
+use self::tls::TlsFiles;
 
 /// The page cache's default bound.
 pub const DEFAULT_CACHE_BYTES: u64 = 256 << 20;
@@ -76,6 +80,8 @@ pub enum ServeError {
     Threads(std::io::Error),
     #[error("server task failed: {0}")]
     Task(String),
+    #[error("TLS: {0}")]
+    Tls(String),
 }
 
 /// What to serve and where.
@@ -93,6 +99,10 @@ pub struct ServerConfig {
     pub rescan_interval: Duration,
     /// Connections, timeouts, rates.
     pub limits: Limits,
+    /// Tokens and allowed origins.
+    pub access: Access,
+    /// Serve HTTPS and `wss://` with this certificate; plain HTTP without.
+    pub tls: Option<TlsFiles>,
 }
 
 impl ServerConfig {
@@ -113,6 +123,8 @@ impl ServerConfig {
             cache_bytes: DEFAULT_CACHE_BYTES,
             rescan_interval: DEFAULT_RESCAN_INTERVAL,
             limits: Limits::default(),
+            access: Access::default(),
+            tls: None,
         }
     }
 }
@@ -125,6 +137,7 @@ pub(crate) struct AppState {
     pub metrics: Arc<Metrics>,
     pub prefetch: Prefetcher,
     pub limits: Limits,
+    pub access: Access,
     /// Becomes `true` when the server is shutting down.
     pub shutdown: watch::Receiver<bool>,
     /// Signalled whenever a session ends.
@@ -162,7 +175,14 @@ pub async fn start(config: ServerConfig) -> Result<RunningServer, ServeError> {
         cache_bytes,
         rescan_interval,
         limits,
+        access,
+        tls,
     } = config;
+    let tls = tls
+        .as_ref()
+        .map(tls::acceptor)
+        .transpose()
+        .map_err(ServeError::Tls)?;
     let mut limits = limits.sane();
     fit_open_files(&mut limits);
     let scenes = match &origin {
@@ -187,6 +207,7 @@ pub async fn start(config: ServerConfig) -> Result<RunningServer, ServeError> {
         metrics,
         prefetch,
         limits: limits.clone(),
+        access,
         shutdown: shutdown_rx.clone(),
         session_ended: Notify::new(),
     });
@@ -210,6 +231,7 @@ pub async fn start(config: ServerConfig) -> Result<RunningServer, ServeError> {
         routes::router(state.clone()),
         state.clone(),
         admission.clone(),
+        tls,
         shutdown_rx,
     ));
     if !rescan_interval.is_zero() {

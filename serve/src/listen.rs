@@ -22,6 +22,7 @@ use hyper_util::rt::{TokioIo, TokioTimer};
 use tokio::io::{AsyncRead, AsyncReadExt, AsyncWrite, AsyncWriteExt};
 use tokio::net::{TcpListener, TcpStream};
 use tokio::sync::watch;
+use tokio_rustls::TlsAcceptor;
 use tower::ServiceExt;
 
 use super::AppState;
@@ -41,6 +42,7 @@ pub(crate) async fn accept_loop(
     router: Router,
     state: Arc<AppState>,
     admission: Arc<Admission>,
+    tls: Option<TlsAcceptor>,
     mut shutdown: watch::Receiver<bool>,
 ) {
     let refusing = Arc::new(AtomicUsize::new(0));
@@ -77,7 +79,26 @@ pub(crate) async fn accept_loop(
                 };
                 let (router, state) = (router.clone(), state.clone());
                 let shutdown = shutdown.clone();
-                tokio::spawn(serve_connection(io, peer, router, state, shutdown));
+                match tls.clone() {
+                    None => {
+                        tokio::spawn(serve_connection(io, peer, router, state, shutdown));
+                    }
+                    Some(tls) => {
+                        tokio::spawn(async move {
+                            let timeout = state.limits.header_timeout;
+                            match tokio::time::timeout(timeout, tls.accept(io)).await {
+                                Ok(Ok(io)) => {
+                                    serve_connection(io, peer, router, state, shutdown).await
+                                }
+                                Ok(Err(e)) => tracing::debug!(%peer, "TLS handshake failed: {e}"),
+                                Err(_) => {
+                                    state.metrics.hit(Limit::HeaderTimeout);
+                                    tracing::debug!(%peer, "closed: no TLS handshake within {timeout:?}");
+                                }
+                            }
+                        });
+                    }
+                }
             }
             Err(limit) => {
                 state.metrics.hit(limit);

@@ -7,7 +7,6 @@
 use std::net::SocketAddr;
 use std::sync::Arc;
 
-use axum::Json;
 use axum::Router;
 use axum::extract::ws::rejection::WebSocketUpgradeRejection;
 use axum::extract::ws::{WebSocket, WebSocketUpgrade};
@@ -15,10 +14,13 @@ use axum::extract::{ConnectInfo, Path, State};
 use axum::http::{StatusCode, header};
 use axum::response::{IntoResponse, Response};
 use axum::routing::get;
+use axum::{Extension, Json};
 use farfield_protocol::codec::MAX_CONTROL_BYTES;
 use serde_json::{Value, json};
 
 use super::AppState;
+use super::access::{self, Grant};
+use super::catalog::ServedScene;
 use super::limits::{WRITE_BUFFER_BYTES, WRITE_BUFFER_SLACK_BYTES};
 use super::session;
 
@@ -35,6 +37,10 @@ pub(crate) fn router(state: Arc<AppState>) -> Router {
         .route("/scenes/{name}", get(one))
         .route("/scenes/{name}/stream", get(stream))
         .fallback(fallback)
+        .layer(axum::middleware::from_fn_with_state(
+            state.clone(),
+            access::check,
+        ))
         .layer(axum::middleware::map_response(json_errors))
         .with_state(state)
 }
@@ -94,14 +100,29 @@ async fn metrics(State(app): State<Arc<AppState>>) -> Response {
         .into_response()
 }
 
-async fn list(State(app): State<Arc<AppState>>) -> Json<Value> {
+async fn list(State(app): State<Arc<AppState>>, Extension(grant): Extension<Grant>) -> Json<Value> {
     Json(Value::Array(
-        app.catalog.list().iter().map(|s| s.summary()).collect(),
+        app.catalog
+            .list()
+            .iter()
+            .filter(|s| grant.allows(&s.name))
+            .map(|s| s.summary())
+            .collect(),
     ))
 }
 
-async fn one(State(app): State<Arc<AppState>>, Path(name): Path<String>) -> Response {
-    match app.catalog.get(&name) {
+/// The scene `name`, if it is served and the request's token covers it (a
+/// scene it does not cover is not told apart from one that does not exist).
+fn granted(app: &AppState, grant: &Grant, name: &str) -> Option<Arc<ServedScene>> {
+    app.catalog.get(name).filter(|_| grant.allows(name))
+}
+
+async fn one(
+    State(app): State<Arc<AppState>>,
+    Extension(grant): Extension<Grant>,
+    Path(name): Path<String>,
+) -> Response {
+    match granted(&app, &grant, &name) {
         Some(scene) => Json(scene.details()).into_response(),
         None => unknown_scene(&name),
     }
@@ -109,11 +130,12 @@ async fn one(State(app): State<Arc<AppState>>, Path(name): Path<String>) -> Resp
 
 async fn stream(
     State(app): State<Arc<AppState>>,
+    Extension(grant): Extension<Grant>,
     Path(name): Path<String>,
     ConnectInfo(peer): ConnectInfo<SocketAddr>,
     ws: Result<WebSocketUpgrade, WebSocketUpgradeRejection>,
 ) -> Response {
-    let Some(scene) = app.catalog.get(&name) else {
+    let Some(scene) = granted(&app, &grant, &name) else {
         return unknown_scene(&name);
     };
     let ws = match ws {

@@ -16,6 +16,7 @@ mod real_data;
 pub(crate) mod serve;
 mod streaming;
 mod surface;
+mod tls;
 mod traversal;
 
 use std::path::Path;

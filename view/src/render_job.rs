@@ -104,7 +104,7 @@ pub fn open_viewer(job: &RenderJob) -> anyhow::Result<Viewer> {
         Source::File(path) => Viewer::open_file(path),
         #[cfg(not(target_arch = "wasm32"))]
         Source::Server { url, scene } => {
-            Viewer::open_remote(url, scene, job.session, job.cache_bytes)
+            Viewer::open_remote(url, scene, job.session.clone(), job.cache_bytes)
         }
         #[cfg(target_arch = "wasm32")]
         Source::Server { .. } => bail!("a browser opens a session through its own transport"),

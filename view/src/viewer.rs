@@ -16,7 +16,7 @@ use std::time::Duration;
 
 use anyhow::Context;
 use farfield_net::{
-    FailedPage, NetStats, Session, SessionEvent, SessionOptions, Transport, stream_url,
+    FailedPage, NetStats, Session, SessionEvent, SessionOptions, Transport, stream_url, with_token,
 };
 use farfield_protocol::file::FileHeader;
 use farfield_protocol::hierarchy::Hierarchy;
@@ -63,8 +63,9 @@ impl Viewer {
         options: SessionOptions,
         cache_bytes: usize,
     ) -> anyhow::Result<Self> {
-        let transport = farfield_net::websocket::WebSocketTransport::new()
-            .context("starting the network thread")?;
+        let transport =
+            farfield_net::websocket::WebSocketTransport::trusting(options.ca_cert.as_deref())
+                .context("starting the network thread")?;
         Ok(Self::over(
             Box::new(transport),
             server,
@@ -83,7 +84,8 @@ impl Viewer {
         options: SessionOptions,
         cache_bytes: usize,
     ) -> Self {
-        let session = Session::open(transport, stream_url(server, scene), options);
+        let url = with_token(&stream_url(server, scene), options.token.as_deref());
+        let session = Session::open(transport, url, options);
         Self::with_session(Some(session), cache_bytes)
     }
 

@@ -47,6 +47,8 @@ pub fn run(args: RenderArgs) -> anyhow::Result<()> {
         coverage: args.coverage,
         session: SessionOptions {
             allow_push: args.push,
+            token: args.token.clone(),
+            ca_cert: args.ca_cert.clone(),
             ..SessionOptions::default()
         },
         cache_bytes: (args.cache_mib.max(1) << 20) as usize,

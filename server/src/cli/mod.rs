@@ -109,6 +109,25 @@ pub struct ServeArgs {
     pub rescan_seconds: f64,
     #[command(flatten)]
     pub limits: LimitArgs,
+    /// A token clients must present (`Authorization: Bearer TOKEN`, or
+    /// `?access_token=TOKEN`) to see every scene; repeatable. Visible to
+    /// other users in the process list: prefer --tokens-file.
+    #[arg(long = "token", value_name = "TOKEN")]
+    pub tokens: Vec<String>,
+    /// A file of tokens: one a line, optionally followed by the
+    /// comma-separated scenes it may see (`#` starts a comment).
+    #[arg(long, value_name = "FILE")]
+    pub tokens_file: Option<PathBuf>,
+    /// An origin (`https://host:port`) whose web pages may use this server
+    /// besides its own pages; `*` allows any. Repeatable.
+    #[arg(long = "allow-origin", value_name = "ORIGIN")]
+    pub allowed_origins: Vec<String>,
+    /// Serve HTTPS and wss:// with this certificate chain (PEM).
+    #[arg(long, value_name = "PEM", requires = "tls_key")]
+    pub tls_cert: Option<PathBuf>,
+    /// The certificate's private key (PEM).
+    #[arg(long, value_name = "PEM", requires = "tls_cert")]
+    pub tls_key: Option<PathBuf>,
     /// Print the final counters as one JSON object on shutdown.
     #[arg(long)]
     pub json: bool,

@@ -12,6 +12,9 @@ use std::time::Duration;
 use serde_json::json;
 
 use super::{Report, ServeArgs};
+use anyhow::Context as _;
+use farfield_serve::access::Access;
+use farfield_serve::tls::TlsFiles;
 use farfield_serve::{ServerConfig, start};
 
 pub fn run(args: &ServeArgs) -> anyhow::Result<Report> {
@@ -27,6 +30,14 @@ pub fn run(args: &ServeArgs) -> anyhow::Result<Report> {
             cache_bytes: args.cache_bytes,
             rescan_interval: Duration::from_secs_f64(args.rescan_seconds),
             limits: args.limits.limits(),
+            access: access(args)?,
+            tls: match (&args.tls_cert, &args.tls_key) {
+                (Some(cert), Some(key)) => Some(TlsFiles {
+                    cert: cert.clone(),
+                    key: key.clone(),
+                }),
+                _ => None,
+            },
             ..ServerConfig::new(&args.scenes, args.listen)
         })
         .await?;
@@ -58,6 +69,25 @@ pub fn run(args: &ServeArgs) -> anyhow::Result<Report> {
         text,
         exit_code: 0,
         as_json: args.json,
+    })
+}
+
+/// The access policy the flags describe.
+fn access(args: &ServeArgs) -> anyhow::Result<Access> {
+    let mut tokens = match &args.tokens_file {
+        Some(path) => {
+            let text = std::fs::read_to_string(path)
+                .with_context(|| format!("reading {}", path.display()))?;
+            Access::parse_tokens(&text).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?
+        }
+        None => Default::default(),
+    };
+    for token in &args.tokens {
+        tokens.insert(token.clone(), None);
+    }
+    Ok(Access {
+        tokens,
+        allowed_origins: args.allowed_origins.clone(),
     })
 }
 

@@ -5,6 +5,7 @@
 //! frames, close codes and misbehaviour these tests need to control). Every wait is bounded, so a broken server fails a test instead
 //! of hanging it.
 
+mod access;
 mod hostile;
 pub(crate) mod limits;
 mod live;
@@ -496,19 +497,6 @@ async fn a_corrupt_page_is_reported_and_never_sent() {
     }
     assert_eq!(server.metrics().corrupt_pages, reads, "read again");
     server.shutdown().await.expect("shutdown");
-}
-
-/// `METHOD path` over a fresh connection; the whole response.
-async fn raw_request(addr: std::net::SocketAddr, head: &str) -> String {
-    use tokio::io::{AsyncReadExt, AsyncWriteExt};
-    let mut tcp = TcpStream::connect(addr).await.expect("connect");
-    tcp.write_all(head.as_bytes()).await.expect("send");
-    let mut got = Vec::new();
-    tokio::time::timeout(T, tcp.read_to_end(&mut got))
-        .await
-        .expect("answer timed out")
-        .expect("read");
-    String::from_utf8_lossy(&got).into_owned()
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]

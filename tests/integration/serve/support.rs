@@ -347,3 +347,15 @@ impl Drop for ChildServer {
         let _ = self.child.wait();
     }
 }
+
+/// `METHOD path` over a fresh connection; the whole response.
+pub(crate) async fn raw_request(addr: SocketAddr, head: &str) -> String {
+    let mut tcp = TcpStream::connect(addr).await.expect("connect");
+    tcp.write_all(head.as_bytes()).await.expect("send");
+    let mut got = Vec::new();
+    tokio::time::timeout(T, tcp.read_to_end(&mut got))
+        .await
+        .expect("answer timed out")
+        .expect("read");
+    String::from_utf8_lossy(&got).into_owned()
+}
