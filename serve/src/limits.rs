@@ -45,6 +45,8 @@ pub struct Limits {
     pub idle_timeout: Duration,
     /// Websocket messages (pings included) a session may send per second,
     /// sustained; a burst of a second's worth is allowed. Past it: 1008.
+    /// Acknowledgements of pages in flight are not counted: they answer
+    /// the server's own sending, at its rate.
     pub max_messages_per_second: u32,
 }
 

@@ -192,9 +192,14 @@ impl Schedule {
     }
 
     /// The client has the page: its bytes leave the window.
-    pub fn received(&mut self, page: u32) {
-        if let Some(bytes) = self.in_flight.remove(&page) {
-            self.in_flight_bytes -= bytes;
+    /// Whether `page` was in flight.
+    pub fn received(&mut self, page: u32) -> bool {
+        match self.in_flight.remove(&page) {
+            Some(bytes) => {
+                self.in_flight_bytes -= bytes;
+                true
+            }
+            None => false,
         }
     }
 

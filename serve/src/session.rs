@@ -480,20 +480,25 @@ async fn read_loop(
                 ),
             );
         };
-        if !rate.take(Instant::now()) {
-            app.metrics.hit(Limit::MessageRate);
-            return End::Limited(
-                Limit::MessageRate,
-                CLOSE_POLICY,
-                format!(
-                    "more than {} messages a second",
-                    limits.max_messages_per_second
-                ),
-            );
-        }
+        let over_rate = |rate: &mut RateLimiter| {
+            (!rate.take(Instant::now())).then(|| {
+                app.metrics.hit(Limit::MessageRate);
+                End::Limited(
+                    Limit::MessageRate,
+                    CLOSE_POLICY,
+                    format!(
+                        "more than {} messages a second",
+                        limits.max_messages_per_second
+                    ),
+                )
+            })
+        };
         let frame = match frame {
             Frame::Binary(b) => b,
-            Frame::Alive => continue,
+            Frame::Alive => match over_rate(&mut rate) {
+                Some(end) => return end,
+                None => continue,
+            },
             Frame::Gone => return End::ClientGone,
             other => return misbehaved(other, app),
         };
@@ -504,13 +509,24 @@ async fn read_loop(
                 return End::Malformed(CLOSE_PROTOCOL, reason);
             }
         };
-        if let Err(end) = apply(message, shared, scene, app) {
-            match &end {
-                End::Malformed(..) => Metrics::add(&app.metrics.malformed_frames, 1),
-                End::Limited(limit, ..) => app.metrics.hit(*limit),
-                _ => {}
+        match apply(message, shared, scene, app) {
+            // An acknowledgement of pages the server sent is an answer, not
+            // a demand: as many as the server sends, and free. Everything
+            // else counts against the rate.
+            Ok(Applied::Acknowledged) => {}
+            Ok(Applied::Counted) => {
+                if let Some(end) = over_rate(&mut rate) {
+                    return end;
+                }
             }
-            return end;
+            Err(end) => {
+                match &end {
+                    End::Malformed(..) => Metrics::add(&app.metrics.malformed_frames, 1),
+                    End::Limited(limit, ..) => app.metrics.hit(*limit),
+                    _ => {}
+                }
+                return end;
+            }
         }
         shared.wake.notify_one();
     }
@@ -518,12 +534,19 @@ async fn read_loop(
 
 /// Applies one client message to the schedule; an error is how the
 /// session must end.
+/// What applying a message was, for the rate limit.
+enum Applied {
+    /// An acknowledgement of at least one page in flight.
+    Acknowledged,
+    Counted,
+}
+
 fn apply(
     message: ClientMessage,
     shared: &Shared,
     scene: &Arc<ServedScene>,
     app: &AppState,
-) -> Result<(), End> {
+) -> Result<Applied, End> {
     let now = Instant::now();
     let pages = scene.page_count();
     match message {
@@ -584,12 +607,16 @@ fn apply(
         }
         ClientMessage::Received { pages } => {
             let mut st = shared.lock();
+            let mut acknowledged = false;
             for p in pages {
-                st.schedule.received(p);
+                acknowledged |= st.schedule.received(p);
+            }
+            if acknowledged {
+                return Ok(Applied::Acknowledged);
             }
         }
     }
-    Ok(())
+    Ok(Applied::Counted)
 }
 
 /// What the writer does next.

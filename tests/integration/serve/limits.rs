@@ -221,3 +221,28 @@ async fn a_client_sending_past_the_message_rate_is_closed_with_1008() {
     assert_eq!(page0, tree().pages[0]);
     server.shutdown().await.expect("shutdown");
 }
+
+/// Acknowledgements of pages the server sent are answers, not demands: a
+/// client acknowledging every page on its own, far past the message rate,
+/// is served to the end. (Counted, they closed bench-stream's one fast
+/// client 1008 and cut its throughput to 0.04 of what it was.)
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn acknowledgements_of_sent_pages_do_not_count_against_the_rate() {
+    let dir = scenes_dir("limits-acks");
+    let server = serve_with(&dir, |c| c.limits.max_messages_per_second = 2).await;
+    let addr = server.local_addr();
+    let (mut c, _, _) = Client::open(addr, "island", 64 << 20, false).await;
+    c.ack([0]).await;
+    let n = island().pages.len() as u32;
+    assert!(n > 4, "{n} pages: too few to pass the rate");
+    let wishes: Vec<(u32, f32)> = (1..n).map(|p| (p, 1.0)).collect();
+    c.request(&wishes).await;
+    for _ in 1..n {
+        match c.recv().await {
+            In::Page(i, _) => c.ack([i]).await,
+            other => panic!("unexpected {other:?}"),
+        }
+    }
+    assert_eq!(limit_hits(&server, "message_rate").await, 0);
+    server.shutdown().await.expect("shutdown");
+}
