@@ -141,7 +141,9 @@ impl Hierarchy {
         // keeps traversal of a corrupt-but-checksummed page in bounds.
         if sum > 0
             && (h.first_child <= h.first_node
-                || h.first_child + sum > self.header.nodes
+                || h.first_child
+                    .checked_add(sum)
+                    .is_none_or(|end| end > self.header.nodes)
                 || sum > u64::from(u32::MAX))
         {
             return Err(FormatError::BadPage {
@@ -372,6 +374,73 @@ impl Hierarchy {
                 .then(|| sphere_codec::decode_color(rec.color)),
             children: rec.children.get(),
             first_child: Self::first_child(page, local),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::file::{AttributeFlags, PageEntry};
+    use crate::page::encode_page;
+    use crate::sphere_codec::{ChildCount, identity_sphere_code};
+
+    /// Found by the `page` fuzz target: a page whose first child lies so
+    /// far on that adding its children's count passed 2^64 overflowed in
+    /// the range check meant to refuse it.
+    #[test]
+    fn children_past_2_to_the_64_are_out_of_range() {
+        let layout = NodeLayout {
+            normals: false,
+            color: false,
+        };
+        let root = NodeRecord {
+            sphere: identity_sphere_code(),
+            children: ChildCount::new(2).unwrap(),
+            ..NodeRecord::EMPTY
+        };
+        let records = &root.pack(layout).to_le_bytes()[..layout.bytes() as usize];
+        for (first_child, expected) in [(1, None), (u64::MAX - 1, Some("child indices"))] {
+            let page_header = PageHeader {
+                index: 0,
+                first_node: 0,
+                first_child,
+                node_count: 1,
+                level_min: 0,
+                level_max: 0,
+            };
+            let (bytes, checksum) = encode_page(&page_header, records);
+            let entry = |first_node, node_count, first_child| PageEntry {
+                offset: 0,
+                length: bytes.len() as u32,
+                node_count,
+                first_node,
+                first_child,
+                level_min: 0,
+                level_max: 0,
+                checksum,
+            };
+            let header = FileHeader {
+                kind: HierarchyKind::Spheres,
+                attributes: AttributeFlags::default(),
+                node_bytes: layout.bytes(),
+                cluster: 0,
+                levels: 2,
+                nodes: 3,
+                leaves: 2,
+                input_vertices: 2,
+                bounds_min: DVec3::ZERO,
+                bounds_max: DVec3::ONE,
+                root_center: DVec3::splat(0.5),
+                root_radius: 1.0,
+                pages: vec![entry(0, 1, first_child), entry(1, 2, 0)],
+            };
+            let mut h = Hierarchy::new(FileHeader::decode(&header.encode()).unwrap()).unwrap();
+            match (h.insert_page(0, &bytes), expected) {
+                (Ok(()), None) => {}
+                (Err(e), Some(message)) => assert!(e.to_string().contains(message), "{e}"),
+                (result, _) => panic!("first child {first_child}: {result:?}"),
+            }
         }
     }
 }
