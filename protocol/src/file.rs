@@ -345,6 +345,19 @@ impl FileHeader {
                 self.nodes
             ));
         }
+        // Each page's children are the nodes from its first child to the
+        // next page's (`Hierarchy::insert_page` checks its child counts
+        // against that), so first children never go back or past the end.
+        let mut first_child = 0;
+        for (i, p) in self.pages.iter().enumerate() {
+            if p.first_child < first_child || p.first_child > self.nodes {
+                return bad(format!(
+                    "page {i}'s first child {} is out of order (after {first_child}, of {} nodes)",
+                    p.first_child, self.nodes
+                ));
+            }
+            first_child = p.first_child;
+        }
         Ok(())
     }
 
