@@ -557,7 +557,7 @@ fn file_seeds(out: &mut Out, name: &str, file: &PagedFile) {
     // The header target: mode 0 (checksums recomputed), the file.
     let mut seed = vec![0u8];
     seed.extend_from_slice(&bytes);
-    out.seed("header", &format!("{name}.ff"), &seed);
+    out.seed("header", name, &seed);
     let cubes = h.kind == HierarchyKind::Cubes;
     let flags = u8::from(cubes)
         | u8::from(h.attributes.color) << 1
