@@ -331,6 +331,12 @@ impl FileHeader {
             if p.first_node != next || p.node_count == 0 {
                 return bad(format!("page {i} does not continue the node order"));
             }
+            if p.offset.checked_add(u64::from(p.length)).is_none() {
+                return bad(format!(
+                    "page {i} ends past the largest possible file (offset {}, {} bytes)",
+                    p.offset, p.length
+                ));
+            }
             next += u64::from(p.node_count);
         }
         if next != self.nodes {
@@ -338,6 +344,19 @@ impl FileHeader {
                 "pages hold {next} nodes, header says {}",
                 self.nodes
             ));
+        }
+        // Each page's children are the nodes from its first child to the
+        // next page's (`Hierarchy::insert_page` checks its child counts
+        // against that), so first children never go back or past the end.
+        let mut first_child = 0;
+        for (i, p) in self.pages.iter().enumerate() {
+            if p.first_child < first_child || p.first_child > self.nodes {
+                return bad(format!(
+                    "page {i}'s first child {} is out of order (after {first_child}, of {} nodes)",
+                    p.first_child, self.nodes
+                ));
+            }
+            first_child = p.first_child;
         }
         Ok(())
     }
@@ -349,11 +368,12 @@ impl FileHeader {
         (node < self.pages[i].first_node + u64::from(self.pages[i].node_count)).then_some(i)
     }
 
-    /// Total bytes of the file this header describes.
+    /// Total bytes of the file this header describes (a decoded header's
+    /// pages all end before 2^64; any other saturates there).
     pub fn file_len(&self) -> u64 {
         self.pages
             .iter()
-            .map(|p| p.offset + u64::from(p.length))
+            .map(|p| p.offset.saturating_add(u64::from(p.length)))
             .max()
             .unwrap_or(0)
             .max(Self::encoded_len(self.pages.len()) as u64)
@@ -415,5 +435,63 @@ impl<'a> Reader<'a> {
     }
     fn f64(&mut self) -> Result<f64, FormatError> {
         Ok(f64::from_le_bytes(self.array()?))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn header(pages: Vec<PageEntry>) -> FileHeader {
+        FileHeader {
+            kind: HierarchyKind::Spheres,
+            attributes: AttributeFlags::default(),
+            node_bytes: 2,
+            cluster: 0,
+            levels: 1,
+            nodes: pages.iter().map(|p| u64::from(p.node_count)).sum(),
+            leaves: 1,
+            input_vertices: 1,
+            bounds_min: DVec3::ZERO,
+            bounds_max: DVec3::ONE,
+            root_center: DVec3::splat(0.5),
+            root_radius: 1.0,
+            pages,
+        }
+    }
+
+    fn page(offset: u64, length: u32, first_node: u64) -> PageEntry {
+        PageEntry {
+            offset,
+            length,
+            node_count: 1,
+            first_node,
+            first_child: 0,
+            level_min: 0,
+            level_max: 0,
+            checksum: 0,
+        }
+    }
+
+    /// Found by the `header` fuzz target: a page whose offset plus length
+    /// passes 2^64 overflowed in `file_len`, which the server calls on
+    /// every scene it opens (a panic with overflow checks, a wrong length
+    /// without).
+    #[test]
+    fn a_page_ending_past_2_to_the_64_is_refused() {
+        let ok = header(vec![page(180, 40, 0), page(u64::MAX - 40, 40, 1)]);
+        let decoded = FileHeader::decode(&ok.encode()).unwrap();
+        assert_eq!(decoded.file_len(), u64::MAX);
+        let bad = header(vec![page(180, 40, 0), page(u64::MAX - 39, 40, 1)]);
+        let e = FileHeader::decode(&bad.encode()).unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            format!(
+                "header: page 1 ends past the largest possible file (offset {}, 40 bytes)",
+                u64::MAX - 39
+            )
+        );
+        // A header built in memory still measures without overflowing.
+        assert_eq!(bad.file_len(), u64::MAX);
     }
 }

@@ -131,23 +131,38 @@ impl Hierarchy {
                 (counts, Some(cubes))
             }
         };
+        // Every child must be a real node after its parent, and the page's
+        // children exactly the nodes from its first child to the next
+        // page's (the directory's first children then split the nodes
+        // after the root into one range per page, so no node has two
+        // parents). This is what keeps traversal of a corrupt-but-
+        // checksummed file in bounds, finite and linear: a child range over
+        // its own node looped forever, and two pages sharing children
+        // doubled the nodes reached at every level.
+        let bad = |message: String| FormatError::BadPage {
+            page: index,
+            message,
+        };
         let mut child_offset = Vec::with_capacity(h.node_count as usize);
         let mut sum = 0u64;
-        for count in child_counts {
+        for (i, count) in child_counts.into_iter().enumerate() {
+            if count > 0 && h.first_child.saturating_add(sum) <= h.first_node + i as u64 {
+                return Err(bad(format!("node {i}'s children do not come after it")));
+            }
             child_offset.push(sum as u32);
             sum += u64::from(count);
         }
-        // Every child must be a real node after its parent: this is what
-        // keeps traversal of a corrupt-but-checksummed page in bounds.
-        if sum > 0
-            && (h.first_child <= h.first_node
-                || h.first_child + sum > self.header.nodes
-                || sum > u64::from(u32::MAX))
-        {
-            return Err(FormatError::BadPage {
-                page: index,
-                message: "child indices out of range".into(),
-            });
+        let next_first_child = self
+            .header
+            .pages
+            .get(index as usize + 1)
+            .map_or(self.header.nodes, |p| p.first_child);
+        if h.first_child.checked_add(sum) != Some(next_first_child) || sum > u64::from(u32::MAX) {
+            return Err(bad(format!(
+                "child indices out of range: {sum} children from node {}, where the directory has {}",
+                h.first_child,
+                next_first_child.saturating_sub(h.first_child)
+            )));
         }
         if let Some(old) = &self.pages[index as usize] {
             self.resident_bytes -= old.byte_len;
@@ -373,5 +388,206 @@ impl Hierarchy {
             children: rec.children.get(),
             first_child: Self::first_child(page, local),
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::file::{AttributeFlags, PageEntry};
+    use crate::page::encode_page;
+    use crate::sphere_codec::{ChildCount, identity_sphere_code};
+
+    /// Page 0 of a sphere hierarchy: one node (the root, its sphere the
+    /// header's) with `children` children from `first_child`, and the
+    /// header of a file where a second page holds `rest` nodes, its first
+    /// child `next_first_child`.
+    fn root_page(
+        children: usize,
+        first_child: u64,
+        rest: u32,
+        next_first_child: u64,
+    ) -> (FileHeader, Vec<u8>) {
+        let layout = NodeLayout {
+            normals: false,
+            color: false,
+        };
+        let root = NodeRecord {
+            sphere: identity_sphere_code(),
+            children: ChildCount::new(children).unwrap(),
+            ..NodeRecord::EMPTY
+        };
+        let records = &root.pack(layout).to_le_bytes()[..layout.bytes() as usize];
+        let page_header = PageHeader {
+            index: 0,
+            first_node: 0,
+            first_child,
+            node_count: 1,
+            level_min: 0,
+            level_max: 0,
+        };
+        let (bytes, checksum) = encode_page(&page_header, records);
+        let entry = |first_node, node_count, first_child| PageEntry {
+            offset: 0,
+            length: bytes.len() as u32,
+            node_count,
+            first_node,
+            first_child,
+            level_min: 0,
+            level_max: 0,
+            checksum,
+        };
+        let header = FileHeader {
+            kind: HierarchyKind::Spheres,
+            attributes: AttributeFlags::default(),
+            node_bytes: layout.bytes(),
+            cluster: 0,
+            levels: 2,
+            nodes: 1 + u64::from(rest),
+            leaves: u64::from(rest),
+            input_vertices: u64::from(rest),
+            bounds_min: DVec3::ZERO,
+            bounds_max: DVec3::ONE,
+            root_center: DVec3::splat(0.5),
+            root_radius: 1.0,
+            pages: vec![entry(0, 1, first_child), entry(1, rest, next_first_child)],
+        };
+        (header, bytes)
+    }
+
+    /// Found by the `page` fuzz target: a page whose first child lies so
+    /// far on that adding its children's count passed 2^64 overflowed in
+    /// the range check meant to refuse it. Such a directory is now refused
+    /// whole; a header made in memory still gets an error, not a panic.
+    #[test]
+    fn children_past_2_to_the_64_are_out_of_range() {
+        let (header, page) = root_page(2, 1, 2, 3);
+        let mut h = Hierarchy::new(FileHeader::decode(&header.encode()).unwrap()).unwrap();
+        h.insert_page(0, &page).unwrap();
+        let (header, page) = root_page(2, u64::MAX - 1, 2, 3);
+        let e = FileHeader::decode(&header.encode()).unwrap_err();
+        assert!(e.to_string().contains("page 0's first child"), "{e}");
+        let e = Hierarchy::new(header)
+            .unwrap()
+            .insert_page(0, &page)
+            .unwrap_err();
+        assert!(e.to_string().contains("child indices out of range"), "{e}");
+    }
+
+    /// A page's children must be exactly the nodes up to the next page's
+    /// first child: the root's 2 children where the directory leaves room
+    /// for 3 (or 1) are refused.
+    #[test]
+    fn children_must_fill_the_directorys_range() {
+        for next in [2, 4] {
+            let (header, page) = root_page(2, 1, 3, next);
+            let mut h = Hierarchy::new(FileHeader::decode(&header.encode()).unwrap()).unwrap();
+            let e = h.insert_page(0, &page).unwrap_err();
+            assert!(
+                e.to_string().ends_with(&format!(
+                    "child indices out of range: 2 children from node 1, where the directory has {}",
+                    next - 1
+                )),
+                "{e}"
+            );
+        }
+    }
+
+    /// The pages of a sphere file (records of identity spheres, so no
+    /// node is ever smaller than the root) from (first node, first child,
+    /// child counts) per page, and its header.
+    fn tree_file(pages: &[(u64, u64, &[usize])]) -> (FileHeader, Vec<Vec<u8>>) {
+        let layout = NodeLayout {
+            normals: false,
+            color: false,
+        };
+        let (mut entries, mut bytes) = (Vec::new(), Vec::new());
+        for (i, &(first_node, first_child, counts)) in pages.iter().enumerate() {
+            let records: Vec<u8> = counts
+                .iter()
+                .flat_map(|&c| {
+                    let record = NodeRecord {
+                        sphere: identity_sphere_code(),
+                        children: ChildCount::new(c).unwrap(),
+                        ..NodeRecord::EMPTY
+                    };
+                    record.pack(layout).to_le_bytes()[..2].to_vec()
+                })
+                .collect();
+            let page = PageHeader {
+                index: i as u32,
+                first_node,
+                first_child,
+                node_count: counts.len() as u32,
+                level_min: 0,
+                level_max: 0,
+            };
+            let (b, checksum) = encode_page(&page, &records);
+            entries.push(PageEntry::of(&page, b.len(), checksum));
+            bytes.push(b);
+        }
+        crate::file::place_pages(&mut entries);
+        let nodes = entries.iter().map(|e| u64::from(e.node_count)).sum();
+        let header = FileHeader {
+            kind: HierarchyKind::Spheres,
+            attributes: AttributeFlags::default(),
+            node_bytes: layout.bytes(),
+            cluster: 0,
+            levels: 1,
+            nodes,
+            leaves: 1,
+            input_vertices: 1,
+            bounds_min: DVec3::ZERO,
+            bounds_max: DVec3::ONE,
+            root_center: DVec3::splat(0.5),
+            root_radius: 1.0,
+            pages: entries,
+        };
+        (FileHeader::decode(&header.encode()).unwrap(), bytes)
+    }
+
+    fn insert_all(pages: &[(u64, u64, &[usize])]) -> Result<Hierarchy, String> {
+        let (header, bytes) = tree_file(pages);
+        let mut h = Hierarchy::new(header).unwrap();
+        for (i, b) in bytes.iter().enumerate() {
+            h.insert_page(i as u32, b).map_err(|e| e.to_string())?;
+        }
+        Ok(h)
+    }
+
+    /// Found while writing the fuzz targets (crafted; the header target
+    /// replays both files from its corpus): checksummed pages whose child
+    /// ranges made a node its own child, or gave a level's nodes two
+    /// parents each in two pages, were accepted, and decoding or
+    /// traversing them never ended (out of memory from a 400-byte file,
+    /// or 2^30 nodes reached from a 5 KB one).
+    #[test]
+    fn a_node_cannot_be_its_own_descendant_or_have_two_parents() {
+        // A well-formed tree: root, two children, two grandchildren.
+        let h = insert_all(&[(0, 1, &[2]), (1, 3, &[2, 0]), (3, 5, &[0, 0])]).unwrap();
+        assert_eq!(h.decode_all().len(), 5);
+        // Node 2's children are nodes 2 and 3: itself (the root's two
+        // children then leave the directory's next first child behind).
+        let e = insert_all(&[(0, 1, &[2]), (1, 2, &[0, 2, 0])]).unwrap_err();
+        assert!(
+            e.ends_with("page 0: child indices out of range: 2 children from node 1, where the directory has 1"),
+            "{e}"
+        );
+        // With the directory right, node 3's children would be 3 and 4.
+        let e = insert_all(&[(0, 1, &[2]), (1, 3, &[0, 0, 2, 0])]).unwrap_err();
+        assert!(
+            e.ends_with("page 1: node 2's children do not come after it"),
+            "{e}"
+        );
+        // Pages 1 and 2 both hold nodes 5 to 8 as their children.
+        let dag: &[(u64, u64, &[usize])] = &[
+            (0, 1, &[2]),
+            (1, 5, &[2, 2]),
+            (3, 5, &[2, 2]),
+            (5, 9, &[0, 0]),
+            (7, 9, &[0, 0]),
+        ];
+        let e = insert_all(dag).unwrap_err();
+        assert!(e.contains("child indices out of range"), "{e}");
     }
 }

@@ -10,8 +10,10 @@
 //! Before the crate sees the file, its raw header is checked against the
 //! file size, because the crate would otherwise allocate from (or overflow
 //! on) impossible counts; a LAS body shorter than its header promises is
-//! reported as truncated. A panic inside the LAZ decompressor on corrupt
-//! data becomes an error.
+//! reported as truncated. For LAZ the same goes for the chunk table's count
+//! and each layered chunk's layer sizes, which the `laz` crate allocates
+//! for before reading. A panic inside the LAZ decompressor on corrupt data
+//! becomes an error.
 
 use std::fs::File;
 use std::io::{BufReader, Read, Seek, SeekFrom};
@@ -123,6 +125,11 @@ fn precheck(path: &Path, file: &mut File, file_len: u64) -> Result<(u64, bool), 
         }
         _ => {}
     }
+    if format.is_compressed {
+        let point_data = u64::from(raw.offset_to_point_data);
+        check_chunk_table(path, file, point_data, file_len)?;
+        check_layers(path, file, &raw, count, file_len)?;
+    }
     if let Some(evlr) = raw.evlr {
         // The crate allocates the first EVLR's 64-bit length before reading it.
         let mut head = [0u8; 28];
@@ -145,6 +152,156 @@ fn precheck(path: &Path, file: &mut File, file_len: u64) -> Result<(u64, bool), 
     file.seek(SeekFrom::Start(0))
         .map_err(|e| ImportError::io(path, e))?;
     Ok((count, format.is_compressed))
+}
+
+/// Checks the chunk count of a LAZ file's chunk table, which the `laz`
+/// crate allocates for before it reads the table: every chunk takes at
+/// least a byte of the file, so a count past the file's length is corrupt
+/// (the fuzzer's 1 KiB file asked for 46 GB). The table is found as the
+/// crate finds it: its offset is the first 8 bytes of the point data, or
+/// the file's last 8 where the writer could not go back to fill those in;
+/// without one the crate reads the chunks in order, allocating nothing.
+fn check_chunk_table(
+    path: &Path,
+    file: &mut File,
+    point_data: u64,
+    file_len: u64,
+) -> Result<(), ImportError> {
+    let table_at = |b: [u8; 8]| {
+        u64::try_from(i64::from_le_bytes(b))
+            .ok()
+            .filter(|&o| o > point_data)
+    };
+    let table = read_array(file, point_data)
+        .and_then(table_at)
+        .or_else(|| table_at(read_array(file, file_len.checked_sub(8)?)?));
+    // A table that cannot be read is the crate's to report.
+    if let Some(head) = table.and_then(|at| read_array::<8>(file, at)) {
+        let chunks = u32::from_le_bytes([head[4], head[5], head[6], head[7]]);
+        if u64::from(chunks) > file_len {
+            return Err(ImportError::malformed(
+                path,
+                "point data",
+                format!(
+                    "the LAZ chunk table is corrupt: it counts {chunks} chunks in a file of {file_len} bytes"
+                ),
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// Checks the layer sizes of a layered LAZ file's chunks (point formats 6
+/// to 10), which the `laz` crate sizes and zero-fills a buffer for before
+/// reading each layer: a 1 KiB file made it take gigabytes. The chunks are
+/// walked as its sequential decompressor reads them: from just after the
+/// chunk table's offset, each chunk is its first point uncompressed (the
+/// items' sizes together), a u32 point count, a u32 size for each layer
+/// (9 for the point, 1 for RGB, 2 for RGB and NIR, 1 for a wave packet, 1
+/// per extra byte), then the layers; their sizes must fit in what is left
+/// of the file. A chunk that cannot be read is the crate's to report.
+fn check_layers(
+    path: &Path,
+    file: &mut File,
+    raw: &las::raw::Header,
+    count: u64,
+    file_len: u64,
+) -> Result<(), ImportError> {
+    let Some(vlr) = laszip_vlr(file, raw, file_len) else {
+        return Ok(());
+    };
+    let u16_at = |i: usize| vlr.get(i..i + 2).map(|b| u16::from_le_bytes([b[0], b[1]]));
+    let (mut first_point, mut layers, mut layered) = (0u64, 0u64, false);
+    for i in 0..u16_at(32).unwrap_or(0) as usize {
+        let (Some(kind), Some(size)) = (u16_at(34 + 6 * i), u16_at(36 + 6 * i)) else {
+            return Ok(());
+        };
+        first_point += u64::from(size);
+        layers += match kind {
+            10 => 9,
+            11 | 13 => 1,
+            12 => 2,
+            14 => u64::from(size),
+            _ => 0,
+        };
+        layered |= (10..=14).contains(&kind);
+    }
+    let chunk_size = vlr
+        .get(12..16)
+        .map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]))
+        .filter(|&n| n != u32::MAX);
+    if !layered {
+        return Ok(());
+    }
+    let mut at = u64::from(raw.offset_to_point_data) + 8;
+    let mut points_left = count;
+    let mut sizes = Vec::new();
+    for chunk in 0u64.. {
+        at += first_point;
+        let left = file_len.saturating_sub(at + 4);
+        // Layer sizes the file cannot hold fail to read, in the crate too.
+        if points_left == 0 || layers * 4 > left {
+            break;
+        }
+        let Some(stated) = read_array::<4>(file, at).map(u32::from_le_bytes) else {
+            break;
+        };
+        sizes.resize(layers as usize * 4, 0);
+        if !read_exact_at(file, at + 4, &mut sizes) {
+            break;
+        }
+        at += 4 + layers * 4;
+        let bytes: u64 = sizes
+            .chunks_exact(4)
+            .map(|b| u64::from(u32::from_le_bytes([b[0], b[1], b[2], b[3]])))
+            .sum();
+        let left = file_len.saturating_sub(at);
+        if bytes > left {
+            return Err(ImportError::malformed(
+                path,
+                format!("point data: chunk {chunk}"),
+                format!("the LAZ layers take {bytes} bytes, more than the {left} left in the file"),
+            ));
+        }
+        at += bytes;
+        match chunk_size.unwrap_or(stated) {
+            0 => break,
+            points => points_left = points_left.saturating_sub(u64::from(points)),
+        }
+    }
+    Ok(())
+}
+
+/// The laszip VLR's data, if the file has one (user id `laszip encoded`,
+/// record id 22204): compressor and coder (u16 each), version (4 bytes),
+/// options and chunk size (u32 each), two i64 about special EVLRs, the
+/// item count (u16), then each item's type, size and version (u16 each).
+fn laszip_vlr(file: &mut File, raw: &las::raw::Header, file_len: u64) -> Option<Vec<u8>> {
+    let mut at = u64::from(raw.header_size);
+    for _ in 0..raw.number_of_variable_length_records {
+        let head = read_array::<54>(file, at)?;
+        let length = u64::from(u16::from_le_bytes([head[20], head[21]]));
+        let record_id = u16::from_le_bytes([head[18], head[19]]);
+        if head[2..18].starts_with(b"laszip encoded") && record_id == 22204 {
+            let mut data = vec![0; length as usize];
+            return read_exact_at(file, at + 54, &mut data).then_some(data);
+        }
+        at += 54 + length;
+        if at >= file_len {
+            return None;
+        }
+    }
+    None
+}
+
+/// Reads `buf.len()` bytes at `at`; false where the file has fewer.
+fn read_exact_at(file: &mut File, at: u64, buf: &mut [u8]) -> bool {
+    file.seek(SeekFrom::Start(at)).is_ok() && file.read_exact(buf).is_ok()
+}
+
+fn read_array<const N: usize>(file: &mut File, at: u64) -> Option<[u8; N]> {
+    let mut buf = [0u8; N];
+    read_exact_at(file, at, &mut buf).then_some(buf)
 }
 
 fn las_error(path: &Path, at: impl Into<String>, e: las::Error) -> ImportError {
@@ -274,10 +431,66 @@ mod tests {
         std::fs::write(&path, &bytes[..bytes.len() - 30]).unwrap();
         let e = load_geometry(&path).unwrap_err().to_string();
         assert!(e.ends_with("file ends early (truncated)"), "{e}");
+        // Found by the `las` fuzz target: a chunk table that counts more
+        // chunks than the file has bytes made the decompressor allocate
+        // 16 bytes for each before reading any (an abort, not an error).
+        let path = write("laz", 2, 1);
+        let mut bytes = std::fs::read(&path).unwrap();
+        let data = u32::from_le_bytes(bytes[96..100].try_into().unwrap()) as usize;
+        let table = i64::from_le_bytes(bytes[data..data + 8].try_into().unwrap()) as usize;
+        let n = bytes.len() as u32;
+        for (chunks, refused) in [(n, false), (n + 1, true), (u32::MAX, true)] {
+            bytes[table + 4..table + 8].copy_from_slice(&chunks.to_le_bytes());
+            std::fs::write(&path, &bytes).unwrap();
+            let e = load(&path).map(|_| ()).unwrap_err().to_string();
+            assert_eq!(e.contains("the LAZ chunk table is corrupt"), refused, "{e}");
+        }
+        std::fs::remove_file(&path).unwrap();
         for junk in [&b"LASF"[..], b"not a las file at all", &[0u8; 400]] {
             let path = temp("las");
             std::fs::write(&path, junk).unwrap();
             assert!(load_geometry(&path).is_err());
         }
+    }
+
+    /// Found by the `las` fuzz target: a chunk of a layered LAZ file (LAS
+    /// 1.4, point format 7) whose layer sizes claimed gigabytes made the
+    /// decompressor zero-fill buffers of that size before reading any of
+    /// it, from an 800-byte file (out of memory, not an error).
+    #[test]
+    fn layers_larger_than_the_file_are_refused() {
+        let path = std::env::temp_dir().join(format!("ff-las-layers-{}.laz", std::process::id()));
+        let mut builder = las::Builder::from((1, 4));
+        builder.point_format = Format::new(7).unwrap();
+        builder.point_format.is_compressed = true;
+        let mut writer = las::Writer::from_path(&path, builder.into_header().unwrap()).unwrap();
+        for i in 0..3 {
+            writer
+                .write_point(las::Point {
+                    x: f64::from(i),
+                    color: Some(las::Color::new(1, 2, 3)),
+                    gps_time: Some(0.5),
+                    ..Default::default()
+                })
+                .unwrap();
+        }
+        writer.close().unwrap();
+        drop(writer);
+        let mut bytes = std::fs::read(&path).unwrap();
+        assert_eq!(load(&path).unwrap().geometries[0].positions.len(), 3);
+        // The first chunk: the chunk table's offset, the first point (30
+        // bytes of point, 6 of color), the point count, then the sizes of
+        // the point's 9 layers and the color's.
+        let data = u32::from_le_bytes(bytes[96..100].try_into().unwrap()) as usize;
+        let sizes = data + 8 + 36 + 4;
+        bytes[sizes + 4..sizes + 8].copy_from_slice(&u32::MAX.to_le_bytes());
+        std::fs::write(&path, &bytes).unwrap();
+        let e = load(&path).map(|_| ()).unwrap_err().to_string();
+        std::fs::remove_file(&path).unwrap();
+        assert!(
+            e.contains("point data: chunk 0: the LAZ layers take 42949")
+                && e.contains("bytes, more than the"),
+            "{e}"
+        );
     }
 }

@@ -24,6 +24,7 @@ use std::path::{Path, PathBuf};
 
 pub use params::Params;
 
+use glam::DVec3;
 use rayon::prelude::*;
 
 use crate::scene::{Primitives, Scene};
@@ -119,9 +120,16 @@ pub fn load_inputs(inputs: &[String], params: &Params) -> Result<Scene, ImportEr
     Ok(scene)
 }
 
+/// Largest coordinate (and sphere radius) a scene may have, in either
+/// direction. The builders keep radii in f32 (at most about 3.4e38), so a
+/// scene much larger than this built a file whose root sphere was
+/// infinite, which no reader accepts; no scan, CAD model or molecule
+/// comes near it.
+pub const MAX_COORDINATE: f64 = 1e30;
+
 /// Checks what the builders rely on: at least one primitive, finite
-/// coordinates and radii, triangle indices in range, channel lengths that
-/// match the positions.
+/// coordinates and radii within [`MAX_COORDINATE`], triangle indices in
+/// range, channel lengths that match the positions.
 pub fn validate(path: &Path, scene: &Scene) -> Result<(), ImportError> {
     if scene.instanced_primitive_count() == 0 {
         return Err(ImportError::Empty {
@@ -133,15 +141,18 @@ pub fn validate(path: &Path, scene: &Scene) -> Result<(), ImportError> {
         // On all threads: for a scanned mesh these two scans were a fifth of
         // its (otherwise serial) import. The first offender is still the
         // one reported.
-        if let Some(i) = first_where(&geometry.positions, |p| !p.is_finite()) {
+        let out_of_range = |p: &DVec3| !(p.is_finite() && p.abs().max_element() <= MAX_COORDINATE);
+        if let Some(i) = first_where(&geometry.positions, out_of_range) {
             let p = geometry.positions[i];
+            let what = if p.is_finite() {
+                format!("is beyond ±{MAX_COORDINATE:e}, too large to build")
+            } else {
+                "is not a finite number".into()
+            };
             return Err(ImportError::malformed(
                 path,
                 format!("vertex {i}"),
-                format!(
-                    "coordinate is not a finite number ({}, {}, {})",
-                    p.x, p.y, p.z
-                ),
+                format!("coordinate {what} ({}, {}, {})", p.x, p.y, p.z),
             ));
         }
         if geometry.normals.as_ref().is_some_and(|v| v.len() != n) {
@@ -182,11 +193,17 @@ pub fn validate(path: &Path, scene: &Scene) -> Result<(), ImportError> {
                         "count differs from sphere count",
                     ));
                 }
-                if let Some(i) = radii.iter().position(|r| !(r.is_finite() && *r >= 0.0)) {
+                if let Some(i) = radii
+                    .iter()
+                    .position(|r| !(*r >= 0.0 && *r <= MAX_COORDINATE))
+                {
                     return Err(ImportError::malformed(
                         path,
                         format!("sphere {i}"),
-                        format!("radius {} is not a finite non-negative number", radii[i]),
+                        format!(
+                            "radius {} is not a number from 0 to {MAX_COORDINATE:e}",
+                            radii[i]
+                        ),
                     ));
                 }
             }
@@ -221,6 +238,51 @@ fn first_where<T: Sync>(items: &[T], pred: impl Fn(&T) -> bool + Sync) -> Option
 #[cfg(test)]
 mod tests {
     use super::first_where;
+    use super::test_file::TestFile;
+    use crate::cubes::{CubeOptions, build_cubes};
+    use crate::{BuildOptions, PagedFile, build_spheres};
+    use farfield_protocol::paged_file::read_image;
+
+    fn read_back(file: &PagedFile) {
+        let mut bytes = file.header.encode();
+        for page in &file.pages {
+            bytes.extend_from_slice(page);
+        }
+        read_image(&bytes).expect("the built file reads back");
+    }
+
+    /// Found by the `off`, `obj` and `las` fuzz targets: a finite
+    /// coordinate past f32's range (1e39 here) imported, and both builders
+    /// then wrote a file whose root sphere was infinite, which every
+    /// reader refuses. Coordinates at the bound build files that read back.
+    #[test]
+    fn coordinates_too_large_to_build_are_refused() {
+        let off = |x: &str| format!("OFF\n3 1\n0 0 0\n{x} 0 0\n0 1 0\n3 0 1 2\n");
+        for big in ["1e39", "-1e31", "1e300"] {
+            let e = TestFile::new("big.off", off(big)).load_input().unwrap_err();
+            assert!(
+                e.to_string()
+                    .contains("vertex 1: coordinate is beyond ±1e30, too large to build"),
+                "{e}"
+            );
+        }
+        let points = "OFF\n3 0\n0 0 0\n1e30 0 0\n0 -1e30 1\n".to_string();
+        for text in [off("1e30"), off("-1e30"), points] {
+            let scene = TestFile::new("edge.off", text).load_input().unwrap();
+            read_back(
+                &build_spheres(scene.clone(), &BuildOptions::default())
+                    .unwrap()
+                    .0,
+            );
+            let options = CubeOptions {
+                samples: 2,
+                ..CubeOptions::default()
+            };
+            if let Ok((file, _)) = build_cubes(scene, &options) {
+                read_back(&file);
+            }
+        }
+    }
 
     #[test]
     fn first_where_finds_the_first_match_in_any_chunk() {

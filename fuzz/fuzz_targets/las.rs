@@ -1,0 +1,9 @@
+//! The LAS/LAZ importer (one reader for both: the header's point format
+//! says whether the points are compressed), as `farfield-server build`
+//! runs it: load, validate, and (for a small cloud) build both hierarchies
+//! and read them back.
+#![no_main]
+
+use libfuzzer_sys::fuzz_target;
+
+fuzz_target!(|data: &[u8]| farfield_fuzz::import("las", data));
