@@ -257,7 +257,9 @@ mod tests {
     /// reader refuses. Coordinates at the bound build files that read back.
     #[test]
     fn coordinates_too_large_to_build_are_refused() {
-        let off = |x: &str| format!("OFF\n3 1\n0 0 0\n{x} 0 0\n0 1 0\n3 0 1 2\n");
+        // The face's corners span x and y alike, so it keeps an area at any
+        // scale (a unit-high face 1e30 long has none, and builds nothing).
+        let off = |x: &str| format!("OFF\n3 1\n0 0 0\n{x} 0 0\n0 {x} 0\n3 0 1 2\n");
         for big in ["1e39", "-1e31", "1e300"] {
             let e = TestFile::new("big.off", off(big)).load_input().unwrap_err();
             assert!(
