@@ -26,8 +26,14 @@ use las::point::Format;
 use super::ImportError;
 use crate::scene::{Geometry, Primitives, Scene};
 
-/// Points decoded per batch.
+/// Points decoded per batch, at most.
 const BATCH: u64 = 1 << 16;
+
+/// Bytes of decoded records per batch, at most: the slab is sized for a
+/// whole batch before the points are read, and a LAZ header's point count
+/// is not bounded by the file, so 65,536 records of 64 KiB each would have
+/// been 4 GiB for a file of a few hundred bytes.
+const BATCH_BYTES: u64 = 16 << 20;
 
 /// Loads a LAS or LAZ file as one point cloud.
 pub fn load(path: &Path) -> Result<Scene, ImportError> {
@@ -72,15 +78,13 @@ fn read_points(path: &Path, reader: &mut las::Reader, cap: usize) -> Result<Poin
         .for_header(reader.header())
         .build();
     let mut positions = Vec::with_capacity(cap);
-    let mut colors = reader
-        .header()
-        .point_format()
-        .has_color
-        .then(|| Vec::with_capacity(cap));
+    let format = reader.header().point_format();
+    let mut colors = format.has_color.then(|| Vec::with_capacity(cap));
+    let batch = (BATCH_BYTES / u64::from(format.len()).max(1)).clamp(1, BATCH);
     loop {
         let at = format!("point {}", positions.len());
         if reader
-            .fill_points(BATCH, &mut data)
+            .fill_points(batch, &mut data)
             .map_err(|e| las_error(path, at, e))?
             == 0
         {
@@ -128,7 +132,7 @@ fn precheck(path: &Path, file: &mut File, file_len: u64) -> Result<(u64, bool), 
     if format.is_compressed {
         let point_data = u64::from(raw.offset_to_point_data);
         check_chunk_table(path, file, point_data, file_len)?;
-        check_layers(path, file, &raw, count, file_len)?;
+        check_laszip(path, file, &raw, count, file_len)?;
     }
     if let Some(evlr) = raw.evlr {
         // The crate allocates the first EVLR's 64-bit length before reading it.
@@ -191,16 +195,23 @@ fn check_chunk_table(
     Ok(())
 }
 
-/// Checks the layer sizes of a layered LAZ file's chunks (point formats 6
-/// to 10), which the `laz` crate sizes and zero-fills a buffer for before
-/// reading each layer: a 1 KiB file made it take gigabytes. The chunks are
-/// walked as its sequential decompressor reads them: from just after the
-/// chunk table's offset, each chunk is its first point uncompressed (the
-/// items' sizes together), a u32 point count, a u32 size for each layer
-/// (9 for the point, 1 for RGB, 2 for RGB and NIR, 1 for a wave packet, 1
-/// per extra byte), then the layers; their sizes must fit in what is left
-/// of the file. A chunk that cannot be read is the crate's to report.
-fn check_layers(
+/// Checks what the `laz` crate trusts in a LAZ file's laszip VLR and
+/// chunks. Each item (point, GPS time, colour, ...) must have its type's
+/// size and the items together a point record's: the decompressor cuts
+/// each record by the stated sizes and decodes by the types', and panicked
+/// slicing past a record when they differed.
+///
+/// Then the layer sizes of a layered file's chunks (point formats 6 to
+/// 10), which it sizes and zero-fills a buffer for before reading each
+/// layer: a 1 KiB file made it take gigabytes. The chunks are walked as
+/// its sequential decompressor reads them: from just after the chunk
+/// table's offset, each chunk is its first point uncompressed (the items'
+/// sizes together), a u32 point count, a u32 size for each layer (9 for
+/// the point, 1 for RGB, 2 for RGB and NIR, 1 for a wave packet, 1 per
+/// extra byte), then the layers; their sizes must fit in what is left of
+/// the file. A chunk that cannot be read is the crate's to report, as is a
+/// missing VLR or an item type it does not know.
+fn check_laszip(
     path: &Path,
     file: &mut File,
     raw: &las::raw::Header,
@@ -211,11 +222,30 @@ fn check_layers(
         return Ok(());
     };
     let u16_at = |i: usize| vlr.get(i..i + 2).map(|b| u16::from_le_bytes([b[0], b[1]]));
+    let bad_items = |message: String| ImportError::malformed(path, "laszip VLR", message);
     let (mut first_point, mut layers, mut layered) = (0u64, 0u64, false);
     for i in 0..u16_at(32).unwrap_or(0) as usize {
         let (Some(kind), Some(size)) = (u16_at(34 + 6 * i), u16_at(36 + 6 * i)) else {
             return Ok(());
         };
+        // LASzip's item types: POINT10, GPSTIME11, RGB12, WAVEPACKET13,
+        // POINT14, RGB14, RGBNIR14, WAVEPACKET14; BYTE (0) and BYTE14 (14)
+        // hold the extra bytes, any number.
+        let fixed = match kind {
+            6 => Some(20),
+            7 => Some(8),
+            8 | 11 => Some(6),
+            9 | 13 => Some(29),
+            10 => Some(30),
+            12 => Some(8),
+            _ => None,
+        };
+        if fixed.is_some_and(|f| f != size) {
+            return Err(bad_items(format!(
+                "item {i} (type {kind}) is {size} bytes, not {}",
+                fixed.unwrap_or_default()
+            )));
+        }
         first_point += u64::from(size);
         layers += match kind {
             10 => 9,
@@ -225,6 +255,12 @@ fn check_layers(
             _ => 0,
         };
         layered |= (10..=14).contains(&kind);
+    }
+    if first_point != u64::from(raw.point_data_record_length) {
+        return Err(bad_items(format!(
+            "the items make records of {first_point} bytes, the header's are {}",
+            raw.point_data_record_length
+        )));
     }
     let chunk_size = vlr
         .get(12..16)
@@ -492,5 +528,90 @@ mod tests {
                 && e.contains("bytes, more than the"),
             "{e}"
         );
+    }
+
+    /// Where the laszip VLR's data starts in a LAZ file's bytes.
+    fn laszip_data(bytes: &[u8]) -> usize {
+        let user = bytes
+            .windows(14)
+            .position(|w| w == b"laszip encoded")
+            .unwrap();
+        user - 2 + 54
+    }
+
+    /// Found by the `las` fuzz target: a laszip item whose stated size was
+    /// not its type's (a POINT10 of 10 bytes) made the decompressor slice
+    /// past the end of a record and panic.
+    #[test]
+    fn laszip_items_must_have_their_types_sizes() {
+        let path = write("laz", 2, 1);
+        let mut bytes = std::fs::read(&path).unwrap();
+        let items = laszip_data(&bytes) + 34;
+        // POINT10, 20 bytes, version 2.
+        assert_eq!(bytes[items..items + 4], [6, 0, 20, 0]);
+        bytes[items + 2] = 10;
+        std::fs::write(&path, &bytes).unwrap();
+        let e = load(&path).map(|_| ()).unwrap_err().to_string();
+        assert!(
+            e.ends_with("laszip VLR: item 0 (type 6) is 10 bytes, not 20"),
+            "{e}"
+        );
+        // Sizes of their types, but not those of the header's records.
+        bytes[items + 2] = 20;
+        bytes[105] += 1;
+        std::fs::write(&path, &bytes).unwrap();
+        let e = load(&path).map(|_| ()).unwrap_err().to_string();
+        std::fs::remove_file(&path).unwrap();
+        assert!(
+            e.ends_with("laszip VLR: the items make records of 26 bytes, the header's are 27"),
+            "{e}"
+        );
+    }
+
+    /// Found while fixing the one above: a LAZ header's point count is not
+    /// bounded by the file, and the batch slab was sized for 65,536
+    /// records before any was read, so records of 64 KiB asked for 4 GiB
+    /// from a file of a few hundred bytes. Batches are now 16 MiB at most.
+    #[test]
+    fn a_batch_of_wide_records_is_bounded() {
+        let path = temp("laz");
+        let mut builder = las::Builder::from((1, 2));
+        builder.point_format = Format::new(0).unwrap();
+        builder.point_format.extra_bytes = 65_000;
+        builder.point_format.is_compressed = true;
+        let mut writer = las::Writer::from_path(&path, builder.into_header().unwrap()).unwrap();
+        writer
+            .write_point(las::Point {
+                extra_bytes: vec![7; 65_000],
+                ..Default::default()
+            })
+            .unwrap();
+        writer.close().unwrap();
+        drop(writer);
+        let mut bytes = std::fs::read(&path).unwrap();
+        assert_eq!(load(&path).unwrap().geometries[0].positions.len(), 1);
+        bytes[107..111].copy_from_slice(&(1u32 << 20).to_le_bytes());
+        std::fs::write(&path, &bytes).unwrap();
+        let peak_before = peak_rss_bytes();
+        let e = load(&path).map(|_| ()).unwrap_err().to_string();
+        std::fs::remove_file(&path).unwrap();
+        assert!(e.ends_with("point 0: file ends early (truncated)"), "{e}");
+        // The process's peak (other tests run beside this one, but none
+        // comes near this).
+        let grown = peak_rss_bytes().saturating_sub(peak_before);
+        assert!(grown < 1 << 30, "the peak grew by {} MiB", grown >> 20);
+    }
+
+    /// The process's peak resident memory so far (0 where unknown).
+    fn peak_rss_bytes() -> u64 {
+        #[cfg(target_os = "linux")]
+        {
+            // SAFETY: getrusage only writes the struct it is given.
+            let mut usage: libc::rusage = unsafe { std::mem::zeroed() };
+            if unsafe { libc::getrusage(libc::RUSAGE_SELF, &mut usage) } == 0 {
+                return u64::try_from(usage.ru_maxrss).unwrap_or(0) * 1024;
+            }
+        }
+        0
     }
 }
