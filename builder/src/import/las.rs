@@ -40,13 +40,17 @@ pub fn load(path: &Path) -> Result<Scene, ImportError> {
     let mut file = File::open(path).map_err(|e| ImportError::io(path, e))?;
     let file_len = file.metadata().map_err(|e| ImportError::io(path, e))?.len();
     let (count, compressed) = precheck(path, &mut file, file_len)?;
-    let mut reader = las::Reader::new(BufReader::with_capacity(1 << 20, file))
-        .map_err(|e| las_error(path, "header", e))?;
     // Compressed points take at least a few bytes each, whatever the header says.
     let cap = count.min(if compressed { file_len } else { file_len / 20 }) as usize;
-    let read = |reader: &mut las::Reader| read_points(path, reader, cap);
+    // Opening a LAZ file decodes its chunk table, so that is inside the
+    // decompressor's `catch_unwind` too.
+    let read = move || {
+        let mut reader = las::Reader::new(BufReader::with_capacity(1 << 20, file))
+            .map_err(|e| las_error(path, "header", e))?;
+        read_points(path, &mut reader, cap)
+    };
     let (positions, colors) = if compressed {
-        catch_unwind(AssertUnwindSafe(|| read(&mut reader))).unwrap_or_else(|_| {
+        catch_unwind(AssertUnwindSafe(read)).unwrap_or_else(|_| {
             Err(ImportError::malformed(
                 path,
                 "point data",
@@ -54,7 +58,7 @@ pub fn load(path: &Path) -> Result<Scene, ImportError> {
             ))
         })?
     } else {
-        read(&mut reader)?
+        read()?
     };
     let mut geometry = Geometry::new(path.display().to_string(), positions, Primitives::Points);
     geometry.colors = colors.map(|c| {
@@ -613,5 +617,29 @@ mod tests {
             }
         }
         0
+    }
+
+    /// Found by the `las` fuzz target: a chunk table whose entries do not
+    /// decode made the decompressor panic while the file was being opened,
+    /// before the `catch_unwind` around reading the points, so the panic
+    /// ended the import (and the process) instead of becoming an error.
+    #[test]
+    fn a_chunk_table_that_does_not_decode_is_an_error() {
+        let path = write("laz", 2, 1);
+        let mut bytes = std::fs::read(&path).unwrap();
+        let data = u32::from_le_bytes(bytes[96..100].try_into().unwrap()) as usize;
+        let table = i64::from_le_bytes(bytes[data..data + 8].try_into().unwrap()) as usize;
+        // The fuzzer's table (minimised): version, 256 chunks, then
+        // entries that make the integer decoder read a symbol past 16 bits.
+        bytes.truncate(table);
+        bytes.extend_from_slice(&[
+            0x00, 0x4d, 0x01, 0x00, 0x00, 0x01, 0x00, 0x00, 0x00, 0x83, 0x22, 0x00, 0x0c, 0x00,
+            0x00, 0x00, 0x13, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00,
+            0x00, 0xc7, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x1e, 0xad, 0x79, 0x40, 0x00,
+            0x00, 0x00, 0x00,
+        ]);
+        std::fs::write(&path, &bytes).unwrap();
+        let e = load_geometry(&path).unwrap_err().to_string();
+        assert!(e.ends_with("point data: the LAZ data is corrupt"), "{e}");
     }
 }
