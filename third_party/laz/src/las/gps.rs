@@ -873,180 +873,152 @@ pub mod v2 {
             let mut multi: i32;
             debug_assert!(self.common.last < 4);
             unsafe {
-                if *self
-                    .common
-                    .last_gps_time_diffs
-                    .get_unchecked(self.common.last)
-                    == 0
-                {
-                    // it the last integer difference was zero
-                    multi = decoder.decode_symbol(&mut self.common.gps_time_0_diff)? as i32;
+                // farfield patch: a loop where the original recursed for
+                // every "switch to another sequence" symbol, which corrupt
+                // data can repeat without end; see PATCHED.md.
+                loop {
+                    if *self
+                        .common
+                        .last_gps_time_diffs
+                        .get_unchecked(self.common.last)
+                        == 0
+                    {
+                        // it the last integer difference was zero
+                        multi = decoder.decode_symbol(&mut self.common.gps_time_0_diff)? as i32;
 
-                    if multi == 1 {
-                        // the difference can be represented with 32 bits
-                        *self
-                            .common
-                            .last_gps_time_diffs
-                            .get_unchecked_mut(self.common.last) =
-                            self.ic_gps_time.decompress(&mut decoder, 0, 0)?;
-                        self.common
-                            .last_gps_times
-                            .get_unchecked_mut(self.common.last)
-                            .value += i64::from(
+                        if multi == 1 {
+                            // the difference can be represented with 32 bits
                             *self
                                 .common
                                 .last_gps_time_diffs
-                                .get_unchecked(self.common.last),
-                        );
-                        *self
-                            .common
-                            .multi_extreme_counters
-                            .get_unchecked_mut(self.common.last) = 0;
-                    } else if multi == 2 {
-                        // the difference is huge
-                        self.common.next = (self.common.next + 1) & 3;
-                        self.common
-                            .last_gps_times
-                            .get_unchecked_mut(self.common.next)
-                            .value = i64::from(
-                            self.ic_gps_time.decompress(
-                                &mut decoder,
-                                (self
-                                    .common
-                                    .last_gps_times
-                                    .get_unchecked(self.common.last)
-                                    .value
-                                    >> 32) as i32,
-                                8,
-                            )?,
-                        );
-                        self.common
-                            .last_gps_times
-                            .get_unchecked_mut(self.common.next)
-                            .value <<= 32;
-                        self.common
-                            .last_gps_times
-                            .get_unchecked_mut(self.common.next)
-                            .value |= i64::from(decoder.read_int()?);
-
-                        self.common.last = self.common.next;
-                        *self
-                            .common
-                            .last_gps_time_diffs
-                            .get_unchecked_mut(self.common.last) = 0;
-                        *self
-                            .common
-                            .multi_extreme_counters
-                            .get_unchecked_mut(self.common.last) = 0;
-                    } else if multi > 2 {
-                        // we switch to another sequence
-                        self.common.last = (self.common.last + multi as usize - 2) & 3;
-                        self.decompress_with(&mut decoder, buf)?;
-                    }
-                } else {
-                    multi = decoder.decode_symbol(&mut self.common.gps_time_multi)? as i32;
-
-                    if multi == 1 {
-                        self.common
-                            .last_gps_times
-                            .get_unchecked_mut(self.common.last)
-                            .value += i64::from(
-                            self.ic_gps_time.decompress(
-                                &mut decoder,
+                                .get_unchecked_mut(self.common.last) =
+                                self.ic_gps_time.decompress(&mut decoder, 0, 0)?;
+                            self.common
+                                .last_gps_times
+                                .get_unchecked_mut(self.common.last)
+                                .value += i64::from(
                                 *self
                                     .common
                                     .last_gps_time_diffs
-                                    .get_unchecked(self.common.last as usize),
-                                1,
-                            )?,
-                        );
-                        *self
-                            .common
-                            .multi_extreme_counters
-                            .get_unchecked_mut(self.common.last) = 0;
-                    } else if multi < LASZIP_GPS_TIME_MULTI_UNCHANGED {
-                        let gps_time_diff: i32;
-                        if multi == 0 {
-                            gps_time_diff = self.ic_gps_time.decompress(&mut decoder, 0, 7)?;
+                                    .get_unchecked(self.common.last),
+                            );
                             *self
                                 .common
                                 .multi_extreme_counters
-                                .get_unchecked_mut(self.common.last) += 1;
-                            if *self
+                                .get_unchecked_mut(self.common.last) = 0;
+                        } else if multi == 2 {
+                            // the difference is huge
+                            self.common.next = (self.common.next + 1) & 3;
+                            self.common
+                                .last_gps_times
+                                .get_unchecked_mut(self.common.next)
+                                .value = i64::from(
+                                self.ic_gps_time.decompress(
+                                    &mut decoder,
+                                    (self
+                                        .common
+                                        .last_gps_times
+                                        .get_unchecked(self.common.last)
+                                        .value
+                                        >> 32) as i32,
+                                    8,
+                                )?,
+                            );
+                            self.common
+                                .last_gps_times
+                                .get_unchecked_mut(self.common.next)
+                                .value <<= 32;
+                            self.common
+                                .last_gps_times
+                                .get_unchecked_mut(self.common.next)
+                                .value |= i64::from(decoder.read_int()?);
+
+                            self.common.last = self.common.next;
+                            *self
+                                .common
+                                .last_gps_time_diffs
+                                .get_unchecked_mut(self.common.last) = 0;
+                            *self
                                 .common
                                 .multi_extreme_counters
-                                .get_unchecked(self.common.last as usize)
-                                > 3
-                            {
-                                *self
-                                    .common
-                                    .last_gps_time_diffs
-                                    .get_unchecked_mut(self.common.last) = gps_time_diff;
-                                *self
-                                    .common
-                                    .multi_extreme_counters
-                                    .get_unchecked_mut(self.common.last) = 0;
-                            }
-                        } else if multi < LASZIP_GPS_TIME_MULTI {
-                            // TODO this can be made shorter, the if only changes the context param
-                            if multi < 10 {
-                                gps_time_diff = self.ic_gps_time.decompress(
-                                    &mut decoder,
-                                    multi.wrapping_mul(
-                                        *self
-                                            .common
-                                            .last_gps_time_diffs
-                                            .get_unchecked(self.common.last),
-                                    ),
-                                    2,
-                                )?;
-                            } else {
-                                gps_time_diff = self.ic_gps_time.decompress(
-                                    &mut decoder,
-                                    multi.wrapping_mul(
-                                        *self
-                                            .common
-                                            .last_gps_time_diffs
-                                            .get_unchecked(self.common.last),
-                                    ),
-                                    3,
-                                )?;
-                            }
+                                .get_unchecked_mut(self.common.last) = 0;
+                        } else if multi > 2 {
+                            // we switch to another sequence
+                            self.common.last = (self.common.last + multi as usize - 2) & 3;
+                            continue;
                         }
-                        // < LASZIP_GPS_TIME_MULTI
-                        else if multi == LASZIP_GPS_TIME_MULTI {
-                            gps_time_diff = self.ic_gps_time.decompress(
-                                &mut decoder,
-                                multi.wrapping_mul(
+                    } else {
+                        multi = decoder.decode_symbol(&mut self.common.gps_time_multi)? as i32;
+
+                        if multi == 1 {
+                            self.common
+                                .last_gps_times
+                                .get_unchecked_mut(self.common.last)
+                                .value += i64::from(
+                                self.ic_gps_time.decompress(
+                                    &mut decoder,
                                     *self
                                         .common
                                         .last_gps_time_diffs
-                                        .get_unchecked(self.common.last),
-                                ),
-                                4,
-                            )?;
+                                        .get_unchecked(self.common.last as usize),
+                                    1,
+                                )?,
+                            );
                             *self
                                 .common
                                 .multi_extreme_counters
-                                .get_unchecked_mut(self.common.last) += 1;
-                            if *self
-                                .common
-                                .multi_extreme_counters
-                                .get_unchecked_mut(self.common.last)
-                                > 3
-                            {
-                                *self
-                                    .common
-                                    .last_gps_time_diffs
-                                    .get_unchecked_mut(self.common.last) = gps_time_diff;
+                                .get_unchecked_mut(self.common.last) = 0;
+                        } else if multi < LASZIP_GPS_TIME_MULTI_UNCHANGED {
+                            let gps_time_diff: i32;
+                            if multi == 0 {
+                                gps_time_diff = self.ic_gps_time.decompress(&mut decoder, 0, 7)?;
                                 *self
                                     .common
                                     .multi_extreme_counters
-                                    .get_unchecked_mut(self.common.last) = 0;
+                                    .get_unchecked_mut(self.common.last) += 1;
+                                if *self
+                                    .common
+                                    .multi_extreme_counters
+                                    .get_unchecked(self.common.last as usize)
+                                    > 3
+                                {
+                                    *self
+                                        .common
+                                        .last_gps_time_diffs
+                                        .get_unchecked_mut(self.common.last) = gps_time_diff;
+                                    *self
+                                        .common
+                                        .multi_extreme_counters
+                                        .get_unchecked_mut(self.common.last) = 0;
+                                }
+                            } else if multi < LASZIP_GPS_TIME_MULTI {
+                                // TODO this can be made shorter, the if only changes the context param
+                                if multi < 10 {
+                                    gps_time_diff = self.ic_gps_time.decompress(
+                                        &mut decoder,
+                                        multi.wrapping_mul(
+                                            *self
+                                                .common
+                                                .last_gps_time_diffs
+                                                .get_unchecked(self.common.last),
+                                        ),
+                                        2,
+                                    )?;
+                                } else {
+                                    gps_time_diff = self.ic_gps_time.decompress(
+                                        &mut decoder,
+                                        multi.wrapping_mul(
+                                            *self
+                                                .common
+                                                .last_gps_time_diffs
+                                                .get_unchecked(self.common.last),
+                                        ),
+                                        3,
+                                    )?;
+                                }
                             }
-                        } else {
-                            multi = LASZIP_GPS_TIME_MULTI - multi;
-                            if multi > LASZIP_GPS_TIME_MULTI_MINUS {
+                            // < LASZIP_GPS_TIME_MULTI
+                            else if multi == LASZIP_GPS_TIME_MULTI {
                                 gps_time_diff = self.ic_gps_time.decompress(
                                     &mut decoder,
                                     multi.wrapping_mul(
@@ -1055,18 +1027,7 @@ pub mod v2 {
                                             .last_gps_time_diffs
                                             .get_unchecked(self.common.last),
                                     ),
-                                    5,
-                                )?;
-                            } else {
-                                gps_time_diff = self.ic_gps_time.decompress(
-                                    &mut decoder,
-                                    LASZIP_GPS_TIME_MULTI_MINUS.wrapping_mul(
-                                        *self
-                                            .common
-                                            .last_gps_time_diffs
-                                            .get_unchecked(self.common.last),
-                                    ),
-                                    6,
+                                    4,
                                 )?;
                                 *self
                                     .common
@@ -1087,52 +1048,97 @@ pub mod v2 {
                                         .multi_extreme_counters
                                         .get_unchecked_mut(self.common.last) = 0;
                                 }
+                            } else {
+                                multi = LASZIP_GPS_TIME_MULTI - multi;
+                                if multi > LASZIP_GPS_TIME_MULTI_MINUS {
+                                    gps_time_diff = self.ic_gps_time.decompress(
+                                        &mut decoder,
+                                        multi.wrapping_mul(
+                                            *self
+                                                .common
+                                                .last_gps_time_diffs
+                                                .get_unchecked(self.common.last),
+                                        ),
+                                        5,
+                                    )?;
+                                } else {
+                                    gps_time_diff = self.ic_gps_time.decompress(
+                                        &mut decoder,
+                                        LASZIP_GPS_TIME_MULTI_MINUS.wrapping_mul(
+                                            *self
+                                                .common
+                                                .last_gps_time_diffs
+                                                .get_unchecked(self.common.last),
+                                        ),
+                                        6,
+                                    )?;
+                                    *self
+                                        .common
+                                        .multi_extreme_counters
+                                        .get_unchecked_mut(self.common.last) += 1;
+                                    if *self
+                                        .common
+                                        .multi_extreme_counters
+                                        .get_unchecked_mut(self.common.last)
+                                        > 3
+                                    {
+                                        *self
+                                            .common
+                                            .last_gps_time_diffs
+                                            .get_unchecked_mut(self.common.last) = gps_time_diff;
+                                        *self
+                                            .common
+                                            .multi_extreme_counters
+                                            .get_unchecked_mut(self.common.last) = 0;
+                                    }
+                                }
                             }
+                            self.common
+                                .last_gps_times
+                                .get_unchecked_mut(self.common.last)
+                                .value += i64::from(gps_time_diff);
+                        } else if multi == LASZIP_GPS_TIME_MULTI_CODE_FULL {
+                            self.common.next = (self.common.next + 1) & 3;
+                            self.common
+                                .last_gps_times
+                                .get_unchecked_mut(self.common.next)
+                                .value = i64::from(
+                                self.ic_gps_time.decompress(
+                                    &mut decoder,
+                                    (self
+                                        .common
+                                        .last_gps_times
+                                        .get_unchecked(self.common.last)
+                                        .value
+                                        >> 32) as i32,
+                                    8,
+                                )?,
+                            );
+                            self.common
+                                .last_gps_times
+                                .get_unchecked_mut(self.common.next)
+                                .value <<= 32;
+                            self.common
+                                .last_gps_times
+                                .get_unchecked_mut(self.common.next)
+                                .value |= i64::from(decoder.read_int()?);
+                            self.common.last = self.common.next;
+                            *self
+                                .common
+                                .last_gps_time_diffs
+                                .get_unchecked_mut(self.common.last) = 0;
+                            *self
+                                .common
+                                .multi_extreme_counters
+                                .get_unchecked_mut(self.common.last) = 0;
+                        } else if multi > LASZIP_GPS_TIME_MULTI_CODE_FULL {
+                            self.common.last = (self.common.last + multi as usize
+                                - LASZIP_GPS_TIME_MULTI_CODE_FULL as usize)
+                                & 3;
+                            continue;
                         }
-                        self.common
-                            .last_gps_times
-                            .get_unchecked_mut(self.common.last)
-                            .value += i64::from(gps_time_diff);
-                    } else if multi == LASZIP_GPS_TIME_MULTI_CODE_FULL {
-                        self.common.next = (self.common.next + 1) & 3;
-                        self.common
-                            .last_gps_times
-                            .get_unchecked_mut(self.common.next)
-                            .value = i64::from(
-                            self.ic_gps_time.decompress(
-                                &mut decoder,
-                                (self
-                                    .common
-                                    .last_gps_times
-                                    .get_unchecked(self.common.last)
-                                    .value
-                                    >> 32) as i32,
-                                8,
-                            )?,
-                        );
-                        self.common
-                            .last_gps_times
-                            .get_unchecked_mut(self.common.next)
-                            .value <<= 32;
-                        self.common
-                            .last_gps_times
-                            .get_unchecked_mut(self.common.next)
-                            .value |= i64::from(decoder.read_int()?);
-                        self.common.last = self.common.next;
-                        *self
-                            .common
-                            .last_gps_time_diffs
-                            .get_unchecked_mut(self.common.last) = 0;
-                        *self
-                            .common
-                            .multi_extreme_counters
-                            .get_unchecked_mut(self.common.last) = 0;
-                    } else if multi > LASZIP_GPS_TIME_MULTI_CODE_FULL {
-                        self.common.last = (self.common.last + multi as usize
-                            - LASZIP_GPS_TIME_MULTI_CODE_FULL as usize)
-                            & 3;
-                        self.decompress_with(&mut decoder, buf)?;
                     }
+                    break;
                 }
                 self.common
                     .last_gps_times

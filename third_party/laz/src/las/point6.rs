@@ -687,150 +687,85 @@ mod v3_v4 {
 
     impl<const VERSION: usize> LasPoint6DecompressorImpl<VERSION> {
         fn read_gps_time(&mut self) -> std::io::Result<()> {
-            let the_context = &mut self.contexts[self.current_context];
+            // farfield patch: a loop where the original recursed for every
+            // "switch to another sequence" symbol, which corrupt data can
+            // repeat without end (a stack overflow); see PATCHED.md.
+            loop {
+                let the_context = &mut self.contexts[self.current_context];
 
-            let mut multi: i32;
-            if the_context.gps_sequences.last_gps_diffs[the_context.gps_sequences.last] == 0 {
-                multi = self
-                    .decoders
-                    .gps_time
-                    .decode_symbol(&mut the_context.models.gps_time_no_diff)?
-                    as i32;
-                if multi == 0 {
-                    // The difference can be represented with 32 bits
-                    the_context.gps_sequences.last_gps_diffs[the_context.gps_sequences.last] =
-                        the_context.decompressors.gps_time.decompress(
-                            &mut self.decoders.gps_time,
-                            0,
-                            0,
-                        )?;
-                    the_context.gps_sequences.last_gps_times[the_context.gps_sequences.last] +=
-                        i64::from(
-                            the_context.gps_sequences.last_gps_diffs
-                                [the_context.gps_sequences.last],
-                        );
-                    the_context.gps_sequences.multi_extreme_counter
-                        [the_context.gps_sequences.last] = 0;
-                } else if multi == 1 {
-                    // Difference is huge
-                    the_context.gps_sequences.next = (the_context.gps_sequences.next + 1) & 3;
-                    let last_gps_time = the_context.gps_sequences.last_gps_times
-                        [the_context.gps_sequences.last]
-                        .value;
-                    let next_gps_time = &mut the_context.gps_sequences.last_gps_times
-                        [the_context.gps_sequences.next];
-
-                    next_gps_time.value =
-                        i64::from(the_context.decompressors.gps_time.decompress(
-                            &mut self.decoders.gps_time,
-                            (last_gps_time >> 32) as i32,
-                            8,
-                        )?);
-                    next_gps_time.value <<= 32;
-                    next_gps_time.value |= i64::from(self.decoders.gps_time.read_int()?);
-                    the_context.gps_sequences.last = the_context.gps_sequences.next;
-                    the_context.gps_sequences.last_gps_diffs[the_context.gps_sequences.last] = 0;
-                    the_context.gps_sequences.multi_extreme_counter
-                        [the_context.gps_sequences.last] = 0;
-                } else {
-                    // We switch to another sequence
-                    the_context.gps_sequences.last =
-                        (the_context.gps_sequences.last + multi as usize - 1) & 3;
-                    self.read_gps_time()?;
-                }
-            } else {
-                multi = self
-                    .decoders
-                    .gps_time
-                    .decode_symbol(&mut the_context.models.gps_time_multi)?
-                    as i32;
-                if multi == 1 {
-                    the_context.gps_sequences.last_gps_times[the_context.gps_sequences.last] +=
-                        i64::from(the_context.decompressors.gps_time.decompress(
-                            &mut self.decoders.gps_time,
-                            the_context.gps_sequences.last_gps_diffs
-                                [the_context.gps_sequences.last],
-                            1,
-                        )?);
-                    the_context.gps_sequences.multi_extreme_counter
-                        [the_context.gps_sequences.last] = 0;
-                } else if multi < LASZIP_GPS_TIME_MULTI_CODE_FULL {
-                    let gps_time_diff: i32;
+                let mut multi: i32;
+                if the_context.gps_sequences.last_gps_diffs[the_context.gps_sequences.last] == 0 {
+                    multi = self
+                        .decoders
+                        .gps_time
+                        .decode_symbol(&mut the_context.models.gps_time_no_diff)?
+                        as i32;
                     if multi == 0 {
-                        gps_time_diff = the_context.decompressors.gps_time.decompress(
-                            &mut self.decoders.gps_time,
-                            0,
-                            7,
-                        )?;
-                        the_context.gps_sequences.multi_extreme_counter
-                            [the_context.gps_sequences.last] += 1;
-                        if the_context.gps_sequences.multi_extreme_counter
-                            [the_context.gps_sequences.last]
-                            > 3
-                        {
-                            the_context.gps_sequences.last_gps_diffs
-                                [the_context.gps_sequences.last] = gps_time_diff;
-                            the_context.gps_sequences.multi_extreme_counter
-                                [the_context.gps_sequences.last] = 0;
-                        }
-                    } else if multi < LASZIP_GPS_TIME_MULTI {
-                        if multi < 10 {
-                            gps_time_diff = the_context.decompressors.gps_time.decompress(
+                        // The difference can be represented with 32 bits
+                        the_context.gps_sequences.last_gps_diffs[the_context.gps_sequences.last] =
+                            the_context.decompressors.gps_time.decompress(
                                 &mut self.decoders.gps_time,
-                                multi.wrapping_mul(
-                                    the_context.gps_sequences.last_gps_diffs
-                                        [the_context.gps_sequences.last],
-                                ),
-                                2,
+                                0,
+                                0,
                             )?;
-                        } else {
-                            gps_time_diff = the_context.decompressors.gps_time.decompress(
-                                &mut self.decoders.gps_time,
-                                multi.wrapping_mul(
-                                    the_context.gps_sequences.last_gps_diffs
-                                        [the_context.gps_sequences.last],
-                                ),
-                                3,
-                            )?;
-                        }
-                    } else if multi == LASZIP_GPS_TIME_MULTI {
-                        gps_time_diff = the_context.decompressors.gps_time.decompress(
-                            &mut self.decoders.gps_time,
-                            LASZIP_GPS_TIME_MULTI
-                                * the_context.gps_sequences.last_gps_diffs
+                        the_context.gps_sequences.last_gps_times[the_context.gps_sequences.last] +=
+                            i64::from(
+                                the_context.gps_sequences.last_gps_diffs
                                     [the_context.gps_sequences.last],
-                            4,
-                        )?;
+                            );
                         the_context.gps_sequences.multi_extreme_counter
-                            [the_context.gps_sequences.last] += 1;
-                        if the_context.gps_sequences.multi_extreme_counter
+                            [the_context.gps_sequences.last] = 0;
+                    } else if multi == 1 {
+                        // Difference is huge
+                        the_context.gps_sequences.next = (the_context.gps_sequences.next + 1) & 3;
+                        let last_gps_time = the_context.gps_sequences.last_gps_times
                             [the_context.gps_sequences.last]
-                            > 3
-                        {
-                            the_context.gps_sequences.last_gps_diffs
-                                [the_context.gps_sequences.last] = gps_time_diff;
-                            the_context.gps_sequences.multi_extreme_counter
-                                [the_context.gps_sequences.last] = 0;
-                        }
+                            .value;
+                        let next_gps_time = &mut the_context.gps_sequences.last_gps_times
+                            [the_context.gps_sequences.next];
+
+                        next_gps_time.value =
+                            i64::from(the_context.decompressors.gps_time.decompress(
+                                &mut self.decoders.gps_time,
+                                (last_gps_time >> 32) as i32,
+                                8,
+                            )?);
+                        next_gps_time.value <<= 32;
+                        next_gps_time.value |= i64::from(self.decoders.gps_time.read_int()?);
+                        the_context.gps_sequences.last = the_context.gps_sequences.next;
+                        the_context.gps_sequences.last_gps_diffs[the_context.gps_sequences.last] =
+                            0;
+                        the_context.gps_sequences.multi_extreme_counter
+                            [the_context.gps_sequences.last] = 0;
                     } else {
-                        multi = LASZIP_GPS_TIME_MULTI - multi;
-                        if multi > LASZIP_GPS_TIME_MULTI_MINUS {
+                        // We switch to another sequence
+                        the_context.gps_sequences.last =
+                            (the_context.gps_sequences.last + multi as usize - 1) & 3;
+                        continue;
+                    }
+                } else {
+                    multi = self
+                        .decoders
+                        .gps_time
+                        .decode_symbol(&mut the_context.models.gps_time_multi)?
+                        as i32;
+                    if multi == 1 {
+                        the_context.gps_sequences.last_gps_times[the_context.gps_sequences.last] +=
+                            i64::from(the_context.decompressors.gps_time.decompress(
+                                &mut self.decoders.gps_time,
+                                the_context.gps_sequences.last_gps_diffs
+                                    [the_context.gps_sequences.last],
+                                1,
+                            )?);
+                        the_context.gps_sequences.multi_extreme_counter
+                            [the_context.gps_sequences.last] = 0;
+                    } else if multi < LASZIP_GPS_TIME_MULTI_CODE_FULL {
+                        let gps_time_diff: i32;
+                        if multi == 0 {
                             gps_time_diff = the_context.decompressors.gps_time.decompress(
                                 &mut self.decoders.gps_time,
-                                multi.wrapping_mul(
-                                    the_context.gps_sequences.last_gps_diffs
-                                        [the_context.gps_sequences.last],
-                                ),
-                                5,
-                            )?;
-                        } else {
-                            gps_time_diff = the_context.decompressors.gps_time.decompress(
-                                &mut self.decoders.gps_time,
-                                LASZIP_GPS_TIME_MULTI_MINUS.wrapping_mul(
-                                    the_context.gps_sequences.last_gps_diffs
-                                        [the_context.gps_sequences.last],
-                                ),
-                                6,
+                                0,
+                                7,
                             )?;
                             the_context.gps_sequences.multi_extreme_counter
                                 [the_context.gps_sequences.last] += 1;
@@ -843,40 +778,113 @@ mod v3_v4 {
                                 the_context.gps_sequences.multi_extreme_counter
                                     [the_context.gps_sequences.last] = 0;
                             }
-                        }
-                    }
-                    the_context.gps_sequences.last_gps_times[the_context.gps_sequences.last] +=
-                        i64::from(gps_time_diff);
-                } else if multi == LASZIP_GPS_TIME_MULTI_CODE_FULL {
-                    the_context.gps_sequences.next = (the_context.gps_sequences.next + 1) & 3;
-                    the_context.gps_sequences.last_gps_times[the_context.gps_sequences.next] =
-                        GpsTime::from(i64::from(
-                            the_context.decompressors.gps_time.decompress(
+                        } else if multi < LASZIP_GPS_TIME_MULTI {
+                            if multi < 10 {
+                                gps_time_diff = the_context.decompressors.gps_time.decompress(
+                                    &mut self.decoders.gps_time,
+                                    multi.wrapping_mul(
+                                        the_context.gps_sequences.last_gps_diffs
+                                            [the_context.gps_sequences.last],
+                                    ),
+                                    2,
+                                )?;
+                            } else {
+                                gps_time_diff = the_context.decompressors.gps_time.decompress(
+                                    &mut self.decoders.gps_time,
+                                    multi.wrapping_mul(
+                                        the_context.gps_sequences.last_gps_diffs
+                                            [the_context.gps_sequences.last],
+                                    ),
+                                    3,
+                                )?;
+                            }
+                        } else if multi == LASZIP_GPS_TIME_MULTI {
+                            gps_time_diff = the_context.decompressors.gps_time.decompress(
                                 &mut self.decoders.gps_time,
-                                (the_context.gps_sequences.last_gps_times
+                                LASZIP_GPS_TIME_MULTI
+                                    * the_context.gps_sequences.last_gps_diffs
+                                        [the_context.gps_sequences.last],
+                                4,
+                            )?;
+                            the_context.gps_sequences.multi_extreme_counter
+                                [the_context.gps_sequences.last] += 1;
+                            if the_context.gps_sequences.multi_extreme_counter
+                                [the_context.gps_sequences.last]
+                                > 3
+                            {
+                                the_context.gps_sequences.last_gps_diffs
+                                    [the_context.gps_sequences.last] = gps_time_diff;
+                                the_context.gps_sequences.multi_extreme_counter
+                                    [the_context.gps_sequences.last] = 0;
+                            }
+                        } else {
+                            multi = LASZIP_GPS_TIME_MULTI - multi;
+                            if multi > LASZIP_GPS_TIME_MULTI_MINUS {
+                                gps_time_diff = the_context.decompressors.gps_time.decompress(
+                                    &mut self.decoders.gps_time,
+                                    multi.wrapping_mul(
+                                        the_context.gps_sequences.last_gps_diffs
+                                            [the_context.gps_sequences.last],
+                                    ),
+                                    5,
+                                )?;
+                            } else {
+                                gps_time_diff = the_context.decompressors.gps_time.decompress(
+                                    &mut self.decoders.gps_time,
+                                    LASZIP_GPS_TIME_MULTI_MINUS.wrapping_mul(
+                                        the_context.gps_sequences.last_gps_diffs
+                                            [the_context.gps_sequences.last],
+                                    ),
+                                    6,
+                                )?;
+                                the_context.gps_sequences.multi_extreme_counter
+                                    [the_context.gps_sequences.last] += 1;
+                                if the_context.gps_sequences.multi_extreme_counter
                                     [the_context.gps_sequences.last]
-                                    .value
-                                    >> 32) as i32,
-                                8,
-                            )?,
-                        ));
-                    the_context.gps_sequences.last_gps_times[the_context.gps_sequences.next]
-                        .value <<= 32;
-                    the_context.gps_sequences.last_gps_times[the_context.gps_sequences.next]
-                        .value |= self.decoders.gps_time.read_int()? as i64;
-                    the_context.gps_sequences.last = the_context.gps_sequences.next;
-                    the_context.gps_sequences.last_gps_diffs[the_context.gps_sequences.last] = 0;
-                    the_context.gps_sequences.multi_extreme_counter
-                        [the_context.gps_sequences.last] = 0;
-                } else if multi >= LASZIP_GPS_TIME_MULTI_CODE_FULL {
-                    the_context.gps_sequences.last = (the_context.gps_sequences.last
-                        + multi as usize
-                        - LASZIP_GPS_TIME_MULTI_CODE_FULL as usize)
-                        & 3;
-                    self.read_gps_time()?;
+                                    > 3
+                                {
+                                    the_context.gps_sequences.last_gps_diffs
+                                        [the_context.gps_sequences.last] = gps_time_diff;
+                                    the_context.gps_sequences.multi_extreme_counter
+                                        [the_context.gps_sequences.last] = 0;
+                                }
+                            }
+                        }
+                        the_context.gps_sequences.last_gps_times[the_context.gps_sequences.last] +=
+                            i64::from(gps_time_diff);
+                    } else if multi == LASZIP_GPS_TIME_MULTI_CODE_FULL {
+                        the_context.gps_sequences.next = (the_context.gps_sequences.next + 1) & 3;
+                        the_context.gps_sequences.last_gps_times[the_context.gps_sequences.next] =
+                            GpsTime::from(i64::from(
+                                the_context.decompressors.gps_time.decompress(
+                                    &mut self.decoders.gps_time,
+                                    (the_context.gps_sequences.last_gps_times
+                                        [the_context.gps_sequences.last]
+                                        .value
+                                        >> 32) as i32,
+                                    8,
+                                )?,
+                            ));
+                        the_context.gps_sequences.last_gps_times
+                            [the_context.gps_sequences.next]
+                            .value <<= 32;
+                        the_context.gps_sequences.last_gps_times[the_context.gps_sequences.next]
+                            .value |= self.decoders.gps_time.read_int()? as i64;
+                        the_context.gps_sequences.last = the_context.gps_sequences.next;
+                        the_context.gps_sequences.last_gps_diffs[the_context.gps_sequences.last] =
+                            0;
+                        the_context.gps_sequences.multi_extreme_counter
+                            [the_context.gps_sequences.last] = 0;
+                    } else if multi >= LASZIP_GPS_TIME_MULTI_CODE_FULL {
+                        the_context.gps_sequences.last = (the_context.gps_sequences.last
+                            + multi as usize
+                            - LASZIP_GPS_TIME_MULTI_CODE_FULL as usize)
+                            & 3;
+                        continue;
+                    }
                 }
+                return Ok(());
             }
-            Ok(())
         }
     }
 
