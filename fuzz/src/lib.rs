@@ -44,9 +44,9 @@ pub fn single_threaded() {
 /// The LAS importer turns a panic inside the `laz` decompressor into an
 /// error ("the LAZ data is corrupt"), as its documentation says, so for the
 /// `las` target such a panic is no finding: this keeps libFuzzer's hook
-/// from aborting on it (each place is printed once). A `laz` panic that the
-/// importer does not catch still ends the run, through libfuzzer-sys's own
-/// `catch_unwind`; a panic anywhere else aborts as before.
+/// from aborting on it (each place is printed once). The target catches a
+/// `laz` panic that the importer let out and aborts; a panic anywhere else
+/// aborts in the hook as before.
 pub fn allow_caught_laz_panics() {
     static ONCE: Once = Once::new();
     ONCE.call_once(|| {
