@@ -642,4 +642,47 @@ mod tests {
         let e = load_geometry(&path).unwrap_err().to_string();
         assert!(e.ends_with("point data: the LAZ data is corrupt"), "{e}");
     }
+
+    /// Found by the `las` fuzz target: a GPS-time layer of 0xff bytes in a
+    /// LAS 1.4 LAZ file (point format 7) decoded "switch to another
+    /// sequence" over and over, and laz's decoder called itself for each:
+    /// the stack overflowed and the process died (third_party/laz, patched,
+    /// loops instead).
+    #[test]
+    fn a_gps_time_layer_that_switches_forever_cannot_overflow_the_stack() {
+        let path = temp("laz");
+        let mut builder = las::Builder::from((1, 4));
+        builder.point_format = Format::new(7).unwrap();
+        builder.point_format.is_compressed = true;
+        let mut writer = las::Writer::from_path(&path, builder.into_header().unwrap()).unwrap();
+        for i in 0..12 {
+            writer
+                .write_point(las::Point {
+                    x: f64::from(i),
+                    color: Some(las::Color::new(1, 2, 3)),
+                    gps_time: Some(1000.0 + f64::from(i * i) * 0.37),
+                    ..Default::default()
+                })
+                .unwrap();
+        }
+        writer.close().unwrap();
+        drop(writer);
+        let mut bytes = std::fs::read(&path).unwrap();
+        // The first chunk: the chunk table's offset, the first point (30
+        // bytes of point, 6 of color), the point count, the sizes of the
+        // point's 9 layers (GPS time last) and the color's, the layers.
+        let data = u32::from_le_bytes(bytes[96..100].try_into().unwrap()) as usize;
+        let sizes_at = data + 8 + 36 + 4;
+        let size = |i: usize| {
+            let at = sizes_at + 4 * i;
+            u32::from_le_bytes(bytes[at..at + 4].try_into().unwrap()) as usize
+        };
+        let gps_at = sizes_at + 40 + (0..8).map(size).sum::<usize>();
+        let gps_len = size(8);
+        assert!(gps_len > 0);
+        bytes[gps_at..gps_at + gps_len].fill(0xff);
+        std::fs::write(&path, &bytes).unwrap();
+        // Whatever the points decode to, the import returns.
+        let _ = load_geometry(&path);
+    }
 }
