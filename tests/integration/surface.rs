@@ -28,16 +28,26 @@ struct Xvfb {
 
 impl Drop for Xvfb {
     fn drop(&mut self) {
-        let _ = self.child.kill();
+        // SIGTERM, so Xvfb removes its lock file (a SIGKILL leaves
+        // /tmp/.X<n>-lock behind, and that display cannot be used again).
+        let asked = Command::new("kill")
+            .arg(self.child.id().to_string())
+            .status()
+            .is_ok_and(|s| s.success());
+        if !asked {
+            let _ = self.child.kill();
+        }
         let _ = self.child.wait();
     }
 }
 
-/// Starts Xvfb on the first free display from :90, waiting for its socket.
+/// Starts Xvfb on the first free display from :90 (no socket and no lock
+/// file), waiting for its socket.
 fn start_xvfb() -> Option<Xvfb> {
-    for n in 90..110 {
+    for n in 90..190 {
         let socket = format!("/tmp/.X11-unix/X{n}");
-        if std::path::Path::new(&socket).exists() {
+        let lock = format!("/tmp/.X{n}-lock");
+        if std::path::Path::new(&socket).exists() || std::path::Path::new(&lock).exists() {
             continue;
         }
         let display = format!(":{n}");
