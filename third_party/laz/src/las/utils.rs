@@ -174,8 +174,15 @@ pub(crate) fn copy_bytes_into_decoder<R: Read + Seek>(
     let inner_vec = decoder.get_mut().get_mut();
     if is_requested {
         if num_bytes > 0 {
-            inner_vec.resize(num_bytes, 0);
-            src.read_exact(&mut inner_vec[..num_bytes])?;
+            // farfield patch: read what is there, growing the buffer as the
+            // bytes arrive, where the original zero-filled `num_bytes` (a
+            // u32 from the file) before reading: gigabytes for a layer that
+            // a short file cannot hold. See PATCHED.md.
+            inner_vec.clear();
+            src.by_ref().take(num_bytes as u64).read_to_end(inner_vec)?;
+            if inner_vec.len() < num_bytes {
+                return Err(std::io::ErrorKind::UnexpectedEof.into());
+            }
             decoder.read_init_bytes()?;
             Ok(true)
         } else {
