@@ -21,6 +21,8 @@ pub struct Cli {
 pub enum Command {
     /// Render one view to a PNG, streaming pages from a server or reading a file.
     Render(Box<RenderArgs>),
+    /// Open the viewer in a window: orbit, pan, zoom and fly while pages stream.
+    View(Box<ViewArgs>),
     /// Measure the memory server on loopback: time to first image, overfetch,
     /// throughput with 1 and N clients next to plain TCP, memory while streaming.
     BenchStream {
@@ -113,6 +115,45 @@ impl SourceArgs {
 }
 
 #[derive(Debug, clap::Args)]
+pub struct ViewArgs {
+    #[command(flatten)]
+    pub source: SourceArgs,
+    /// Open at eye=x,y,z,target=x,y,z[,fov=DEG] (default: the whole scene).
+    #[arg(long, value_parser = parse_camera, conflicts_with = "orbit")]
+    pub camera: Option<CameraSpec>,
+    /// Open at azimuth=DEG,elevation=DEG,distance=R (scene radii).
+    #[arg(long, value_parser = parse_orbit)]
+    pub orbit: Option<CameraSpec>,
+    /// The window's inner size.
+    #[arg(long, value_parser = parse_size, default_value = "1280x800")]
+    pub size: (u32, u32),
+    /// The threshold a resting view refines to (spheres: pixels; cubes: eps).
+    #[arg(long, default_value_t = 1.0)]
+    pub threshold: f64,
+    #[arg(long, value_enum, default_value = "square")]
+    pub kernel: KernelArg,
+    /// Most nodes a frame draws (0: no budget).
+    #[arg(long, default_value_t = 0)]
+    pub budget: u64,
+    /// Resident pages kept, MiB.
+    #[arg(long, default_value_t = 512)]
+    pub cache_mib: u64,
+    /// Start with the panel hidden (Tab shows it).
+    #[arg(long)]
+    pub no_panel: bool,
+    /// The server's access token.
+    #[arg(long, value_name = "TOKEN")]
+    pub token: Option<String>,
+    /// Trust this certificate authority (PEM) for an https:// server.
+    #[arg(long, value_name = "PEM")]
+    pub ca_cert: Option<std::path::PathBuf>,
+    /// Save the window here whenever the resting view becomes refined, and
+    /// print the camera (for scripts and tests).
+    #[arg(long, value_name = "PNG")]
+    pub screenshot_when_refined: Option<PathBuf>,
+}
+
+#[derive(Debug, clap::Args)]
 pub struct BenchArgs {
     #[command(flatten)]
     pub source: SourceArgs,
@@ -183,6 +224,15 @@ pub struct BenchCubesArgs {
 pub enum KernelArg {
     Square,
     Round,
+}
+
+impl From<KernelArg> for farfield_render::Kernel {
+    fn from(k: KernelArg) -> Self {
+        match k {
+            KernelArg::Square => Self::Square,
+            KernelArg::Round => Self::Round,
+        }
+    }
 }
 
 #[derive(Debug, clap::Args)]
@@ -262,6 +312,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
             json,
         } => commands::compare::run(&a, &b, tolerance, json),
         Command::Render(args) => commands::render::run(*args),
+        Command::View(args) => commands::view::run(view_job(*args)?),
         Command::Bench(args) => commands::measure::bench(*args),
         Command::Report { dirs, out } => commands::measure::report(&dirs, &out),
         Command::BenchCubes(args) => commands::measure::bench_cubes(*args),
@@ -282,4 +333,24 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
             json,
         } => commands::traverse::run(&file, orbit, size, threshold, json),
     }
+}
+
+fn view_job(args: ViewArgs) -> anyhow::Result<commands::view::ViewJob> {
+    let settings = farfield_viewer::panel::Settings {
+        threshold: args.threshold,
+        kernel: args.kernel.into(),
+        node_budget: args.budget,
+        cache_mib: args.cache_mib.max(1),
+        ..Default::default()
+    };
+    Ok(commands::view::ViewJob {
+        source: args.source.into_source()?,
+        camera: args.camera.or(args.orbit),
+        size: args.size,
+        settings,
+        show_panel: !args.no_panel,
+        token: args.token,
+        ca_cert: args.ca_cert,
+        screenshot_when_refined: args.screenshot_when_refined,
+    })
 }

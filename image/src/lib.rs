@@ -19,4 +19,4 @@ mod report;
 
 pub use files::{CompareError, FileComparison, compare_files};
 pub use metrics::{ImageMetrics, MetricsError, compare, compare_images};
-pub use png_file::{ImageError, read_png, write_png};
+pub use png_file::{ImageError, encode_png, read_png, write_png};

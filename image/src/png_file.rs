@@ -74,13 +74,9 @@ pub fn write_png(
     tmp_name.push(format!(".tmp{}", std::process::id()));
     let tmp = path.with_file_name(tmp_name);
     let result = (|| {
+        let bytes = encode_png(width, height, rgba).map_err(encode)?;
         let mut out = BufWriter::new(File::create(&tmp).map_err(io)?);
-        let mut encoder = png::Encoder::new(&mut out, width, height);
-        encoder.set_color(png::ColorType::Rgba);
-        encoder.set_depth(png::BitDepth::Eight);
-        let mut writer = encoder.write_header().map_err(encode)?;
-        writer.write_image_data(rgba).map_err(encode)?;
-        writer.finish().map_err(encode)?;
+        out.write_all(&bytes).map_err(io)?;
         out.flush().map_err(io)?;
         drop(out);
         std::fs::rename(&tmp, path).map_err(io)
@@ -90,6 +86,19 @@ pub fn write_png(
         let _ = std::fs::remove_file(&tmp);
     }
     result
+}
+
+/// Tightly packed RGBA8 rows as PNG bytes (a browser's download, a file's
+/// contents); `rgba` must hold `width * height * 4` bytes.
+pub fn encode_png(width: u32, height: u32, rgba: &[u8]) -> Result<Vec<u8>, png::EncodingError> {
+    let mut bytes = Vec::new();
+    let mut encoder = png::Encoder::new(&mut bytes, width, height);
+    encoder.set_color(png::ColorType::Rgba);
+    encoder.set_depth(png::BitDepth::Eight);
+    let mut writer = encoder.write_header()?;
+    writer.write_image_data(rgba)?;
+    writer.finish()?;
+    Ok(bytes)
 }
 
 /// Reads an 8-bit RGB or RGBA PNG as `(width, height, rgba)`; RGB gets an

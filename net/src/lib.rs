@@ -6,8 +6,8 @@
 //!   and cancels, acknowledgements, checksum failures, pages given up,
 //!   reconnects with backoff), over any transport;
 //! - [`transport`]: the [`Transport`] seam, binary frames in and out;
-//! - [`websocket`]: the native transport (not built for wasm32, where a
-//!   browser `WebSocket` takes its place);
+//! - [`websocket`]: the native transport (not built for wasm32), and
+//!   [`browser`]: a page's `WebSocket` (built only for wasm32);
 //! - [`queue`]: a transport whose bytes its owner moves (tests; async
 //!   drivers);
 //! - [`url`]: the stream URL of a scene, spelled once; [`stats`]: the
@@ -18,6 +18,8 @@
 //! on a current-thread runtime of its own, and
 //! [`websocket::drive`] runs socket and session in one task of the caller's.
 
+#[cfg(target_arch = "wasm32")]
+pub mod browser;
 pub mod queue;
 pub mod session;
 pub mod stats;

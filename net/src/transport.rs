@@ -5,8 +5,8 @@
 //! session ([`crate::Session`]) decides when to connect, what to send and
 //! what a frame means. Implementations: [`crate::websocket`] (native,
 //! tokio-tungstenite on a thread of its own), [`crate::queue`] (tests, and
-//! async drivers that move the bytes themselves),
-//! and a browser `WebSocket` next.
+//! async drivers that move the bytes themselves) and [`crate::browser`]
+//! (a page's `WebSocket`).
 
 use std::time::Duration;
 

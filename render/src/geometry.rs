@@ -21,6 +21,7 @@ use farfield_traverse::cubes::{CubeCut, FaceDraw};
 use glam::{DVec3, Vec3};
 
 use super::RenderOutput;
+use super::error_scope::ValidationScope;
 use super::instances::{DEFAULT_COLOR, snorm16};
 use super::renderer::Renderer;
 use super::target::{color_target, depth_test};
@@ -112,7 +113,7 @@ pub(crate) struct GeometryPipelines {
 
 impl GeometryPipelines {
     pub(crate) fn new(device: &wgpu::Device, format: wgpu::TextureFormat) -> anyhow::Result<Self> {
-        let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
+        let scope = ValidationScope::push(device);
         let shader = device.create_shader_module(wgpu::include_wgsl!("geometry.wgsl"));
         let UniformBinding {
             buffer: uniform,
@@ -197,7 +198,7 @@ impl GeometryPipelines {
             false,
             Some(wgpu::BlendState::PREMULTIPLIED_ALPHA_BLENDING),
         );
-        if let Some(e) = pollster::block_on(scope.pop()) {
+        if let Some(e) = scope.pop() {
             bail!("creating the geometry pipelines: {e}");
         }
         Ok(Self {
@@ -319,7 +320,7 @@ impl Renderer {
             params: [shading::AMBIENT, shading::DIFFUSE, 0.0, 0.0],
         };
         let (gpu, pipes, output) = self.geometry_parts()?;
-        let scope = gpu.device.push_error_scope(wgpu::ErrorFilter::Validation);
+        let scope = ValidationScope::push(&gpu.device);
         gpu.queue
             .write_buffer(&pipes.uniform, 0, bytemuck::bytes_of(&uniform));
         let vertex_bytes: &[u8] = bytemuck::cast_slice(vertices);
@@ -373,7 +374,7 @@ impl Renderer {
         }
         let rgba = output.finish(gpu, frame, encoder)?;
         let draw_ms = started.elapsed().as_secs_f64() * 1e3;
-        if let Some(e) = pollster::block_on(scope.pop()) {
+        if let Some(e) = scope.pop() {
             bail!(
                 "rendering {} triangles and {} faces: {e}",
                 vertices.len() / 3,

@@ -22,6 +22,7 @@
 
 mod adapter;
 mod draw_list;
+mod error_scope;
 mod geometry;
 mod instances;
 mod output;

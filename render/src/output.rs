@@ -1,6 +1,6 @@
 //! Where the renderer's frames go: an offscreen texture read back after
-//! every frame (PNGs, metrics, tests), or a window's or canvas's surface,
-//! presented and never read back.
+//! every frame (PNGs, metrics, tests), one a viewer shows in its UI, or a
+//! window's or canvas's surface, presented and never read back.
 //!
 //! Both draw the same passes; only the start and the end of a frame
 //! differ ([`Output::begin`], [`Output::finish`]).
@@ -14,6 +14,8 @@ use crate::target::{DEPTH_FORMAT, Target};
 #[derive(Debug)]
 pub(crate) enum Output {
     Offscreen(Target),
+    /// Offscreen, but shown by the caller (a viewer's panel) and not read back.
+    Shown(Target),
     Surface(SurfaceOutput),
 }
 
@@ -112,7 +114,7 @@ fn depth_texture(device: &wgpu::Device, width: u32, height: u32) -> wgpu::Textur
 impl Output {
     pub fn size(&self) -> (u32, u32) {
         match self {
-            Self::Offscreen(t) => (t.width, t.height),
+            Self::Offscreen(t) | Self::Shown(t) => (t.width, t.height),
             Self::Surface(s) => (s.config.width, s.config.height),
         }
     }
@@ -120,7 +122,7 @@ impl Output {
     /// The color format the pipelines must write.
     pub fn format(&self) -> wgpu::TextureFormat {
         match self {
-            Self::Offscreen(_) => crate::target::COLOR_FORMAT,
+            Self::Offscreen(_) | Self::Shown(_) => crate::target::COLOR_FORMAT,
             Self::Surface(s) => s.config.format,
         }
     }
@@ -128,7 +130,7 @@ impl Output {
     /// Reallocates for a new size (each side at least 1 pixel).
     pub fn resize(&mut self, device: &wgpu::Device, width: u32, height: u32) {
         match self {
-            Self::Offscreen(t) => *t = Target::new(device, width, height),
+            Self::Offscreen(t) | Self::Shown(t) => *t = Target::new(device, width, height),
             Self::Surface(s) => {
                 s.config.width = width.max(1);
                 s.config.height = height.max(1);
@@ -143,7 +145,7 @@ impl Output {
     /// may skip the frame for.
     pub fn begin(&self, device: &wgpu::Device) -> anyhow::Result<Frame> {
         let s = match self {
-            Self::Offscreen(t) => {
+            Self::Offscreen(t) | Self::Shown(t) => {
                 return Ok(Frame {
                     color: t.color_view.clone(),
                     depth: t.depth_view.clone(),
@@ -189,6 +191,10 @@ impl Output {
                 t.copy_out(&mut encoder);
                 gpu.queue.submit([encoder.finish()]);
                 t.read(&gpu.device)
+            }
+            (Self::Shown(_), _) => {
+                gpu.queue.submit([encoder.finish()]);
+                Ok(Vec::new())
             }
             (Self::Surface(_), Some(texture)) => {
                 gpu.queue.submit([encoder.finish()]);

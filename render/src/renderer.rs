@@ -9,6 +9,7 @@ use farfield_traverse::spheres::Splat;
 use glam::{DVec3, Vec3};
 
 use super::adapter::{self, Gpu};
+use super::error_scope::ValidationScope;
 use super::geometry::GeometryPipelines;
 use super::instances::{self, GpuSplat, STRIDE};
 use super::output::{Output, SurfaceOutput};
@@ -50,7 +51,12 @@ pub struct Renderer {
     scratch: Vec<GpuSplat>,
     /// Triangle and cube-face pipelines, made when first needed.
     geometry: Option<GeometryPipelines>,
+    /// A capture under way ([`Self::request_capture`]): set when mapped.
+    capture: Option<CaptureSlot>,
 }
+
+/// Where a capture's mapping result lands.
+type CaptureSlot = std::sync::Arc<std::sync::Mutex<Option<Result<(), wgpu::BufferAsyncError>>>>;
 
 impl Renderer {
     /// Opens an adapter (see [`super::BACKEND_ENV`]) and prepares a
@@ -96,11 +102,92 @@ impl Renderer {
         Self::with_output(gpu, output)
     }
 
+    /// A renderer on a device someone else opened (a viewer's, whose UI
+    /// toolkit owns the window), drawing into a `width` x `height` texture
+    /// that the caller shows ([`Self::shown_texture`]) and never reads
+    /// back, so no frame waits for the GPU: in a browser none may.
+    pub fn for_texture(
+        adapter: wgpu::Adapter,
+        device: wgpu::Device,
+        queue: wgpu::Queue,
+        width: u32,
+        height: u32,
+    ) -> anyhow::Result<Self> {
+        let info = adapter.get_info();
+        let gpu = Gpu {
+            adapter,
+            device,
+            queue,
+            info,
+        };
+        check_size(&gpu.device, width, height)?;
+        let output = Output::Shown(Target::new(&gpu.device, width, height));
+        Self::with_output(gpu, output)
+    }
+
+    /// The texture a [`Self::for_texture`] renderer draws into, and a
+    /// number that changes whenever it is a new texture (after a resize),
+    /// so its user knows to register it again; `None` for other outputs.
+    pub fn shown_texture(&self) -> Option<(&wgpu::TextureView, u64)> {
+        match &self.output {
+            Output::Shown(t) => Some((&t.color_view, t.generation)),
+            _ => None,
+        }
+    }
+
+    /// Starts reading back the last frame of a [`Self::for_texture`]
+    /// renderer, without waiting; [`Self::poll_capture`] hands it over once
+    /// the GPU has it. For a viewer's screenshots: the scene as drawn,
+    /// without the UI around it.
+    pub fn request_capture(&mut self) -> anyhow::Result<()> {
+        let Output::Shown(target) = &self.output else {
+            bail!("only a renderer that draws into a shown texture captures its frames");
+        };
+        if self.capture.is_some() {
+            return Ok(());
+        }
+        let done = std::sync::Arc::default();
+        let encoder = self
+            .gpu
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("farfield capture"),
+            });
+        target.read_later(&self.gpu.queue, encoder, std::sync::Arc::clone(&done));
+        self.capture = Some(done);
+        Ok(())
+    }
+
+    /// Whether a capture is under way.
+    pub fn capture_pending(&self) -> bool {
+        self.capture.is_some()
+    }
+
+    /// The frame [`Self::request_capture`] asked for, once it is back:
+    /// `(width, height, RGBA rows, top first)`. Never waits (natively it
+    /// polls the device once).
+    pub fn poll_capture(&mut self) -> Option<anyhow::Result<(u32, u32, Vec<u8>)>> {
+        let done = self.capture.as_ref()?;
+        // A browser runs map callbacks itself; natively they run in poll.
+        let _ = self.gpu.device.poll(wgpu::PollType::Poll);
+        let result = done.lock().ok()?.take()?;
+        self.capture = None;
+        let Output::Shown(target) = &self.output else {
+            return Some(Err(anyhow::anyhow!("the output changed during a capture")));
+        };
+        Some(match result {
+            Ok(()) => target
+                .take_mapped()
+                .map(|rgba| (target.width, target.height, rgba)),
+            Err(e) => Err(anyhow::anyhow!("reading the frame back: {e}")),
+        })
+    }
+
     /// The pipelines for `output`'s format.
     fn with_output(gpu: Gpu, output: Output) -> anyhow::Result<Self> {
         let device = &gpu.device;
         let limits = device.limits();
-        let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
+        let scope = ValidationScope::push(device);
         let shader = device.create_shader_module(wgpu::include_wgsl!("splat.wgsl"));
         let UniformBinding {
             buffer: uniform,
@@ -142,7 +229,7 @@ impl Renderer {
             multiview_mask: None,
             cache: None,
         });
-        if let Some(e) = pollster::block_on(scope.pop()) {
+        if let Some(e) = scope.pop() {
             bail!("creating the splat pipeline: {e}");
         }
         let chunk_splats = (limits.max_buffer_size.min(MAX_CHUNK_BYTES) / STRIDE).max(1);
@@ -155,6 +242,7 @@ impl Renderer {
             chunk_splats,
             scratch: Vec::new(),
             geometry: None,
+            capture: None,
             gpu,
         })
     }
@@ -191,6 +279,8 @@ impl Renderer {
         let (width, height) = (width.clamp(1, max), height.clamp(1, max));
         if (width, height) != self.size() {
             self.output.resize(&self.gpu.device, width, height);
+            // A capture of the old frame cannot be read from the new one.
+            self.capture = None;
         }
     }
 
@@ -217,10 +307,7 @@ impl Renderer {
             camera.width,
             camera.height
         );
-        let scope = self
-            .gpu
-            .device
-            .push_error_scope(wgpu::ErrorFilter::Validation);
+        let scope = ValidationScope::push(&self.gpu.device);
         let started = Instant::now();
         // `near` here only clamps View's planes, which are not used.
         let view = camera.view(1.0);
@@ -252,7 +339,7 @@ impl Renderer {
         }
         let rgba = self.output.finish(&self.gpu, frame, encoder)?;
         let draw_ms = started.elapsed().as_secs_f64() * 1e3;
-        if let Some(e) = pollster::block_on(scope.pop()) {
+        if let Some(e) = scope.pop() {
             bail!("rendering {} splats: {e}", splats.len());
         }
         Ok(RenderOutput {

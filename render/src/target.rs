@@ -48,7 +48,12 @@ pub(crate) struct Target {
     pub depth_view: wgpu::TextureView,
     readback: wgpu::Buffer,
     padded_row: u32,
+    /// Distinguishes this allocation from earlier ones of the same output.
+    pub generation: u64,
 }
+
+/// Counts texture allocations, so a shown target's user can tell a new one.
+static GENERATIONS: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
 
 impl Target {
     /// Allocates a frame of `width` x `height` (each at least 1).
@@ -74,7 +79,9 @@ impl Target {
         let color = texture(
             "farfield color",
             COLOR_FORMAT,
-            wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
+            wgpu::TextureUsages::RENDER_ATTACHMENT
+                | wgpu::TextureUsages::COPY_SRC
+                | wgpu::TextureUsages::TEXTURE_BINDING,
         );
         let depth = texture(
             "farfield depth",
@@ -97,6 +104,7 @@ impl Target {
             color,
             readback,
             padded_row,
+            generation: GENERATIONS.fetch_add(1, std::sync::atomic::Ordering::Relaxed),
         }
     }
 
@@ -139,6 +147,30 @@ impl Target {
         rx.recv()
             .context("readback callback never ran")?
             .context("mapping the readback buffer")?;
+        self.take_mapped()
+    }
+
+    /// Starts reading the color texture back without waiting: the copy
+    /// is submitted and the buffer mapped when the GPU is done, which
+    /// `done` then says. Nothing blocks, so a browser may call it.
+    pub fn read_later(
+        &self,
+        queue: &wgpu::Queue,
+        mut encoder: wgpu::CommandEncoder,
+        done: std::sync::Arc<std::sync::Mutex<Option<Result<(), wgpu::BufferAsyncError>>>>,
+    ) {
+        self.copy_out(&mut encoder);
+        queue.submit([encoder.finish()]);
+        self.readback.map_async(wgpu::MapMode::Read, .., move |r| {
+            if let Ok(mut slot) = done.lock() {
+                *slot = Some(r);
+            }
+        });
+    }
+
+    /// The mapped readback buffer as tightly packed RGBA rows, top row
+    /// first; unmaps it.
+    pub fn take_mapped(&self) -> anyhow::Result<Vec<u8>> {
         let row = self.width as usize * 4;
         let mut rgba = Vec::with_capacity(row * self.height as usize);
         {

@@ -186,7 +186,10 @@ pub(crate) async fn check(
         cors_headers(&mut response, origin.as_deref());
         return response;
     }
-    let grant = if access.tokens.is_empty() || request.uri().path() == "/healthz" {
+    // The viewer's code is public (it holds no scene); health is for probes.
+    let path = request.uri().path();
+    let open = path == "/healthz" || path.starts_with("/web/");
+    let grant = if access.tokens.is_empty() || open {
         Grant::All
     } else {
         match token_of(&request).and_then(|t| access.tokens.get(&t)) {

@@ -17,7 +17,8 @@
 //!   `admission` and `listen` enforce them at the socket, `session` after
 //!   the upgrade; [`rlimit`] raises the open-files limit to fit;
 //! - `session`: the websocket session itself;
-//! - `routes`: the HTTP endpoints;
+//! - `routes`: the HTTP endpoints; `pages` and [`web_assets`]: the
+//!   browser's list of scenes and viewer page, and the viewer's files;
 //! - [`metrics`]: atomics and the Prometheus text.
 
 pub mod access;
@@ -27,6 +28,7 @@ pub mod catalog;
 pub mod limits;
 mod listen;
 pub mod metrics;
+mod pages;
 pub mod prefetch;
 pub mod rescan;
 pub mod rlimit;
@@ -34,6 +36,7 @@ mod routes;
 pub mod schedule;
 mod session;
 pub mod tls;
+pub mod web_assets;
 
 use std::net::SocketAddr;
 use std::path::PathBuf;
@@ -103,6 +106,9 @@ pub struct ServerConfig {
     pub access: Access,
     /// Serve HTTPS and `wss://` with this certificate; plain HTTP without.
     pub tls: Option<TlsFiles>,
+    /// The browser viewer's built files; `None` looks in the usual places
+    /// ([`web_assets::find_dir`]).
+    pub web: Option<PathBuf>,
 }
 
 impl ServerConfig {
@@ -125,6 +131,7 @@ impl ServerConfig {
             limits: Limits::default(),
             access: Access::default(),
             tls: None,
+            web: None,
         }
     }
 }
@@ -142,6 +149,8 @@ pub(crate) struct AppState {
     pub shutdown: watch::Receiver<bool>,
     /// Signalled whenever a session ends.
     pub session_ended: Notify,
+    /// The browser viewer's files, if found.
+    pub web_dir: Option<PathBuf>,
 }
 
 /// A server running in the background of the current tokio runtime.
@@ -177,7 +186,13 @@ pub async fn start(config: ServerConfig) -> Result<RunningServer, ServeError> {
         limits,
         access,
         tls,
+        web,
     } = config;
+    let web_dir = web.or_else(web_assets::find_dir);
+    match &web_dir {
+        Some(dir) => tracing::info!("browser viewer from {}", dir.display()),
+        None => tracing::info!("no browser viewer found (build it with web/build)"),
+    }
     let tls = tls
         .as_ref()
         .map(tls::acceptor)
@@ -210,6 +225,7 @@ pub async fn start(config: ServerConfig) -> Result<RunningServer, ServeError> {
         access,
         shutdown: shutdown_rx.clone(),
         session_ended: Notify::new(),
+        web_dir,
     });
     let listener = tokio::net::TcpListener::bind(listen)
         .await

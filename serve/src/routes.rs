@@ -1,5 +1,6 @@
-//! The HTTP surface: scene listing, one scene, health, metrics, and the
-//! websocket upgrade that starts a session (`session.rs`).
+//! The HTTP surface: the browser's pages (`pages.rs`, `web_assets.rs`),
+//! scene listing, one scene, health, metrics, and the websocket upgrade
+//! that starts a session (`session.rs`).
 //!
 //! Unknown scenes and paths answer 404 with a JSON `{"error": ...}` body, so
 //! scripts and the client can print the reason.
@@ -22,7 +23,7 @@ use super::AppState;
 use super::access::{self, Grant};
 use super::catalog::ServedScene;
 use super::limits::{WRITE_BUFFER_BYTES, WRITE_BUFFER_SLACK_BYTES};
-use super::session;
+use super::{pages, session, web_assets};
 
 /// Largest websocket message a client may send: one control message plus
 /// its kind byte, with room to spare. Anything larger is refused by the
@@ -31,6 +32,9 @@ const MAX_CLIENT_MESSAGE: usize = 2 * MAX_CONTROL_BYTES;
 
 pub(crate) fn router(state: Arc<AppState>) -> Router {
     Router::new()
+        .route("/", get(pages::index))
+        .route("/view/{name}", get(pages::viewer))
+        .route("/web/{file}", get(web_assets::serve))
         .route("/healthz", get(healthz))
         .route("/metrics", get(metrics))
         .route("/scenes", get(list))
@@ -50,11 +54,14 @@ pub(crate) fn router(state: Arc<AppState>) -> Router {
 /// the client read one shape. The original text becomes the message.
 async fn json_errors(response: Response) -> Response {
     let status = response.status();
-    let is_json = response
+    // JSON stays as it is, and so do the pages a browser shows a person.
+    let keep = response
         .headers()
         .get(header::CONTENT_TYPE)
-        .is_some_and(|v| v.as_bytes().starts_with(b"application/json"));
-    if !(status.is_client_error() || status.is_server_error()) || is_json {
+        .is_some_and(|v| {
+            v.as_bytes().starts_with(b"application/json") || v.as_bytes().starts_with(b"text/html")
+        });
+    if !(status.is_client_error() || status.is_server_error()) || keep {
         return response;
     }
     let (parts, body) = response.into_parts();
@@ -155,5 +162,5 @@ async fn stream(
 }
 
 async fn fallback() -> Response {
-    not_found("no such endpoint (try /scenes, /healthz or /metrics)".into())
+    not_found("no such endpoint (try /, /scenes, /healthz or /metrics)".into())
 }

@@ -18,6 +18,8 @@ mod streaming;
 mod surface;
 mod tls;
 mod traversal;
+mod viewer;
+mod xvfb;
 
 use std::path::Path;
 

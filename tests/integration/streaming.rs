@@ -61,7 +61,7 @@ fn serve(rt: &tokio::runtime::Runtime, dir: &Path, port: u16) -> RunningServer {
     rt.block_on(start(config)).expect("server starts")
 }
 
-fn job(source: Source, camera: CameraSpec) -> RenderJob {
+pub(crate) fn job(source: Source, camera: CameraSpec) -> RenderJob {
     RenderJob {
         source,
         camera,

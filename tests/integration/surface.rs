@@ -7,74 +7,19 @@
 //! With neither it fails and says what to install, unless
 //! `FARFIELD_ALLOW_NO_GPU=1` lets GPU tests skip.
 
-use std::process::{Child, Command, Stdio};
+use std::process::Command;
 use std::sync::Arc;
-use std::time::{Duration, Instant};
 
 use farfield_protocol::camera::Camera;
 use farfield_render::{ALLOW_NO_GPU_ENV, Renderer, SplatStyle};
 use farfield_traverse::spheres::Splat;
 use glam::DVec3;
 
+use crate::xvfb::start_xvfb;
+
 /// Tells [`draw_into_a_window_child`] that it runs as the child.
 const CHILD_ENV: &str = "FARFIELD_SURFACE_CHILD";
 const SIZE: (u32, u32) = (96, 64);
-
-/// An Xvfb server on a free display, killed when dropped.
-struct Xvfb {
-    child: Child,
-    display: String,
-}
-
-impl Drop for Xvfb {
-    fn drop(&mut self) {
-        // SIGTERM, so Xvfb removes its lock file (a SIGKILL leaves
-        // /tmp/.X<n>-lock behind, and that display cannot be used again).
-        let asked = Command::new("kill")
-            .arg(self.child.id().to_string())
-            .status()
-            .is_ok_and(|s| s.success());
-        if !asked {
-            let _ = self.child.kill();
-        }
-        let _ = self.child.wait();
-    }
-}
-
-/// Starts Xvfb on the first free display from :90 (no socket and no lock
-/// file), waiting for its socket.
-fn start_xvfb() -> Option<Xvfb> {
-    for n in 90..190 {
-        let socket = format!("/tmp/.X11-unix/X{n}");
-        let lock = format!("/tmp/.X{n}-lock");
-        if std::path::Path::new(&socket).exists() || std::path::Path::new(&lock).exists() {
-            continue;
-        }
-        let display = format!(":{n}");
-        let child = Command::new("Xvfb")
-            .args([
-                display.as_str(),
-                "-screen",
-                "0",
-                "320x240x24",
-                "-nolisten",
-                "tcp",
-            ])
-            .stdout(Stdio::null())
-            .stderr(Stdio::null())
-            .spawn()
-            .ok()?;
-        let xvfb = Xvfb { child, display };
-        let started = Instant::now();
-        while started.elapsed() < Duration::from_secs(10) {
-            if std::path::Path::new(&socket).exists() {
-                return Some(xvfb);
-            }
-            std::thread::sleep(Duration::from_millis(50));
-        }
-    }
-    None
-}
 
 #[test]
 fn a_window_surface_is_drawn_and_presented_without_a_readback() {
@@ -82,7 +27,7 @@ fn a_window_surface_is_drawn_and_presented_without_a_readback() {
     let xvfb = start_xvfb();
     let display = xvfb
         .as_ref()
-        .map(|x| x.display.clone())
+        .map(|x| x.display().to_owned())
         .or_else(|| std::env::var("DISPLAY").ok().filter(|d| !d.is_empty()));
     let Some(display) = display else {
         let allowed = std::env::var(ALLOW_NO_GPU_ENV).is_ok_and(|v| v.trim() == "1");

@@ -23,6 +23,21 @@ use crate::viewer::Viewer;
 /// Largest threshold the feedback may choose, in pixels.
 pub const MAX_THRESHOLD_PX: f64 = 64.0;
 
+/// The next frame's threshold after a frame of `frame_ms` aiming at
+/// `target_ms` (QSplat 2.1): the threshold *area* scales with the ratio of
+/// actual to target frame time (each step at most 4x either way), so the
+/// diameter scales with its square root; never finer than the final
+/// threshold (nor half a pixel), never coarser than [`MAX_THRESHOLD_PX`].
+pub fn follow_frame_time(
+    threshold: f64,
+    frame_ms: f64,
+    target_ms: f64,
+    final_threshold: f64,
+) -> f64 {
+    let ratio = (frame_ms / target_ms.max(1e-3)).clamp(0.25, 4.0);
+    (threshold * ratio.sqrt()).clamp(final_threshold.max(0.5), MAX_THRESHOLD_PX)
+}
+
 /// A flythrough's settings.
 #[derive(Debug, Clone)]
 pub struct FlyJob {
@@ -126,8 +141,7 @@ pub fn fly(
             frame, path_s, started, threshold, &cut, viewer, times, frame_ms, false,
         ));
         write_frame(job, frame, &rgba)?;
-        let ratio = (frame_ms / job.target_frame_ms.max(1e-3)).clamp(0.25, 4.0);
-        threshold = (threshold * ratio.sqrt()).clamp(final_threshold.max(0.5), MAX_THRESHOLD_PX);
+        threshold = follow_frame_time(threshold, frame_ms, job.target_frame_ms, final_threshold);
     }
     let mut settle = Settle::new(final_threshold, Until::Refined, started, job.timeout);
     if job.settle {

@@ -189,6 +189,15 @@ impl Viewer {
         Ok(inserted)
     }
 
+    /// Changes the byte budget of resident pages, evicting at once when
+    /// it shrank.
+    pub fn set_cache_bytes(&mut self, bytes: usize) {
+        self.cache_bytes = bytes;
+        if let Some(h) = self.hierarchy.as_mut() {
+            evict(h, &mut self.recency, bytes);
+        }
+    }
+
     /// Sends new wishes and cancels stale ones. `wanted` is the traversal's
     /// list (most urgent first).
     pub fn request(&mut self, wanted: &[WantedPage]) {

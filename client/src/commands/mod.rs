@@ -6,3 +6,4 @@ pub mod demo;
 pub mod measure;
 pub mod render;
 pub mod traverse;
+pub mod view;

@@ -6,14 +6,14 @@ use std::time::{Duration, Instant};
 
 use anyhow::Context;
 use farfield_net::SessionOptions;
-use farfield_render::{Kernel, Renderer, SplatStyle};
+use farfield_render::{Renderer, SplatStyle};
 use farfield_view::flythrough::{FlyJob, fly, write_csv};
 use farfield_view::frame_loop::Until;
 use farfield_view::path::CameraPath;
 use farfield_view::render_job::{RenderJob, open_viewer};
 use farfield_view::report::RenderReport;
 
-use crate::cli::{KernelArg, RenderArgs};
+use crate::cli::RenderArgs;
 
 /// `farfield render`: one view to a PNG, or a flythrough with `--path`.
 pub fn run(args: RenderArgs) -> anyhow::Result<()> {
@@ -40,10 +40,7 @@ pub fn run(args: RenderArgs) -> anyhow::Result<()> {
         out: Some(args.out),
         until,
         threshold_px: threshold,
-        kernel: match args.kernel {
-            KernelArg::Square => Kernel::Square,
-            KernelArg::Round => Kernel::Round,
-        },
+        kernel: args.kernel.into(),
         coverage: args.coverage,
         session: SessionOptions {
             allow_push: args.push,

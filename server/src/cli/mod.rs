@@ -128,6 +128,10 @@ pub struct ServeArgs {
     /// The certificate's private key (PEM).
     #[arg(long, value_name = "PEM", requires = "tls_cert")]
     pub tls_key: Option<PathBuf>,
+    /// The browser viewer's built files (default: $FARFIELD_WEB_DIR,
+    /// ./web/dist, or web/dist of the checkout this binary was built in).
+    #[arg(long, value_name = "DIR")]
+    pub web: Option<PathBuf>,
     /// Print the final counters as one JSON object on shutdown.
     #[arg(long)]
     pub json: bool,

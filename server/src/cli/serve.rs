@@ -38,6 +38,7 @@ pub fn run(args: &ServeArgs) -> anyhow::Result<Report> {
                 }),
                 _ => None,
             },
+            web: args.web.clone(),
             ..ServerConfig::new(&args.scenes, args.listen)
         })
         .await?;

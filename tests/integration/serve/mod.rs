@@ -9,7 +9,7 @@ mod access;
 mod hostile;
 pub(crate) mod limits;
 mod live;
-mod support;
+pub(crate) mod support;
 
 use std::collections::HashSet;
 use std::time::Duration;

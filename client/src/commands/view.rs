@@ -1,0 +1,123 @@
+//! `farfield view`: the viewer in a native window (winit, through eframe),
+//! the same app as the browser's.
+//!
+//! `--screenshot-when-refined PNG` saves the window each time the resting
+//! view becomes refined and prints `refined camera=<camera> png=<PNG>`, so
+//! a script (the window test) can move the camera with real input and
+//! check what the window shows.
+
+use std::path::PathBuf;
+use std::time::Duration;
+
+use anyhow::Context;
+use farfield_net::SessionOptions;
+use farfield_view::camera_spec::CameraSpec;
+use farfield_view::render_job::Source;
+use farfield_view::viewer::Viewer;
+use farfield_viewer::link::camera_fragment;
+use farfield_viewer::panel::Settings;
+use farfield_viewer::status::Status;
+use farfield_viewer::{AppOptions, Platform, Shot, ViewerApp};
+
+/// What `farfield view` was asked.
+#[derive(Debug)]
+pub struct ViewJob {
+    pub source: Source,
+    pub camera: Option<CameraSpec>,
+    pub size: (u32, u32),
+    pub settings: Settings,
+    pub show_panel: bool,
+    pub token: Option<String>,
+    pub ca_cert: Option<PathBuf>,
+    pub screenshot_when_refined: Option<PathBuf>,
+}
+
+pub fn run(job: ViewJob) -> anyhow::Result<()> {
+    let title = match &job.source {
+        Source::File(path) => format!("farfield · {}", path.display()),
+        Source::Server { url, scene } => format!("farfield · {scene} on {url}"),
+    };
+    let viewer = match &job.source {
+        Source::File(path) => Viewer::open_file(path)?,
+        Source::Server { url, scene } => {
+            let session = SessionOptions {
+                token: job.token.clone(),
+                ca_cert: job.ca_cert.clone(),
+                // A viewer waits for its server however long it takes, saying so.
+                first_connect_grace: Duration::from_secs(365 * 24 * 3600),
+                ..SessionOptions::default()
+            };
+            Viewer::open_remote(url, scene, session, job.settings.cache_bytes())?
+        }
+    };
+    let (w, h) = job.size;
+    let native = eframe::NativeOptions {
+        viewport: eframe::egui::ViewportBuilder::default()
+            .with_title(&title)
+            .with_inner_size([w as f32, h as f32]),
+        dithering: false,
+        // Tests run the viewer on a thread of their own.
+        #[cfg(target_os = "linux")]
+        event_loop_builder: Some(Box::new(|builder| {
+            use winit::platform::x11::EventLoopBuilderExtX11;
+            builder.with_any_thread(true);
+        })),
+        ..Default::default()
+    };
+    let options = AppOptions {
+        camera: job.camera,
+        settings: job.settings,
+        show_panel: job.show_panel,
+    };
+    let window = Window {
+        save_to: job.screenshot_when_refined,
+        was_refined: false,
+    };
+    eframe::run_native(
+        &title,
+        native,
+        Box::new(move |cc| {
+            let app = ViewerApp::new(cc, viewer, options, Box::new(window))?;
+            Ok(Box::new(app))
+        }),
+    )
+    .map_err(|e| anyhow::anyhow!("{e}"))
+    .context("opening the viewer's window")
+}
+
+/// The window's side of the viewer.
+struct Window {
+    save_to: Option<PathBuf>,
+    was_refined: bool,
+}
+
+impl Platform for Window {
+    fn wants_screenshot(&mut self, status: &Status) -> Shot {
+        let newly = status.refined && !self.was_refined;
+        self.was_refined = status.refined;
+        if newly && self.save_to.is_some() {
+            // What the window shows, as presented: the test's evidence.
+            Shot::Window
+        } else {
+            Shot::None
+        }
+    }
+
+    fn screenshot(&mut self, width: u32, height: u32, rgba: Vec<u8>) {
+        let path = self
+            .save_to
+            .clone()
+            .unwrap_or_else(|| PathBuf::from("farfield-screenshot.png"));
+        match farfield_image::write_png(&path, width, height, &rgba) {
+            Ok(()) => println!("saved png={}", path.display()),
+            Err(e) => eprintln!("farfield: could not save the screenshot: {e}"),
+        }
+    }
+
+    fn status(&mut self, status: &Status) {
+        if status.refined && !self.was_refined {
+            let camera = status.camera.as_ref().and_then(camera_fragment);
+            println!("refined camera={}", camera.unwrap_or_default());
+        }
+    }
+}

@@ -1,0 +1,169 @@
+//! The browser's transport: a `WebSocket` of the page (web-sys).
+//!
+//! A browser runs the socket itself and tells the page through callbacks;
+//! each callback pushes what happened onto a queue that
+//! [`Transport::poll`] empties, so the session sees the same events as
+//! over the native transport and never blocks (a browser frame must not).
+//! Each connection has its own queue: callbacks of an abandoned socket
+//! push into a queue nobody reads, so nothing of it is reported.
+//!
+//! What a browser hides: the HTTP status of a refused upgrade (a 404 for an
+//! unknown scene is just a failed connection here, which is why the server
+//! checks the scene when it serves the viewer's page) and a close frame's
+//! difference from a reset. A connection that opened and then ended is
+//! [`Closing::ByServer`] (a restart: try again soon); one that never opened
+//! is [`Closing::Failed`] (back off).
+
+use std::cell::RefCell;
+use std::collections::VecDeque;
+use std::rc::Rc;
+use std::time::Duration;
+
+use bytes::Bytes;
+use wasm_bindgen::JsCast;
+use wasm_bindgen::closure::Closure;
+use web_sys::{BinaryType, CloseEvent, MessageEvent, WebSocket};
+
+use crate::transport::{Closing, Transport, TransportEvent};
+
+type Events = Rc<RefCell<VecDeque<TransportEvent>>>;
+
+/// One open (or opening) socket, its callbacks and its queue.
+struct Connection {
+    socket: WebSocket,
+    events: Events,
+    /// Kept alive as long as the socket may call them.
+    _callbacks: [Closure<dyn FnMut(web_sys::Event)>; 3],
+}
+
+impl Connection {
+    fn open(url: &str, hello: Vec<u8>) -> Result<Self, String> {
+        let socket = WebSocket::new(url).map_err(|e| format!("connect {url}: {e:?}"))?;
+        socket.set_binary_type(BinaryType::Arraybuffer);
+        let events: Events = Rc::default();
+        let opened = Rc::new(std::cell::Cell::new(false));
+
+        let on_open = {
+            let (events, opened, socket) = (events.clone(), opened.clone(), socket.clone());
+            Closure::<dyn FnMut(web_sys::Event)>::new(move |_| {
+                opened.set(true);
+                // The hello goes first, the moment the socket opens.
+                let _ = socket.send_with_u8_array(&hello);
+                events.borrow_mut().push_back(TransportEvent::Opened);
+            })
+        };
+        let on_message = {
+            let events = events.clone();
+            Closure::<dyn FnMut(web_sys::Event)>::new(move |event: web_sys::Event| {
+                let Some(message) = event.dyn_ref::<MessageEvent>() else {
+                    return;
+                };
+                // Text frames are not part of the protocol: ignored, as natively.
+                if let Ok(buffer) = message.data().dyn_into::<js_sys::ArrayBuffer>() {
+                    let bytes = js_sys::Uint8Array::new(&buffer).to_vec();
+                    events
+                        .borrow_mut()
+                        .push_back(TransportEvent::Frame(Bytes::from(bytes)));
+                }
+            })
+        };
+        let on_close = {
+            let (events, url) = (events.clone(), url.to_owned());
+            Closure::<dyn FnMut(web_sys::Event)>::new(move |event: web_sys::Event| {
+                let (code, reason) = event
+                    .dyn_ref::<CloseEvent>()
+                    .map_or((0, String::new()), |c| (c.code(), c.reason()));
+                let (reason, how) = if opened.get() {
+                    (
+                        format!("server closed the connection (code {code}) {reason}"),
+                        Closing::ByServer,
+                    )
+                } else {
+                    (
+                        format!("connect {url}: failed (code {code})"),
+                        Closing::Failed,
+                    )
+                };
+                events
+                    .borrow_mut()
+                    .push_back(TransportEvent::Closed { reason, how });
+            })
+        };
+        socket.set_onopen(Some(on_open.as_ref().unchecked_ref()));
+        socket.set_onmessage(Some(on_message.as_ref().unchecked_ref()));
+        socket.set_onclose(Some(on_close.as_ref().unchecked_ref()));
+        Ok(Self {
+            socket,
+            events,
+            _callbacks: [on_open, on_message, on_close],
+        })
+    }
+
+    fn close(&self) {
+        self.socket.set_onopen(None);
+        self.socket.set_onmessage(None);
+        self.socket.set_onclose(None);
+        let _ = self.socket.close();
+    }
+}
+
+/// A session's transport in a browser page.
+#[derive(Default)]
+pub struct BrowserTransport {
+    connection: Option<Connection>,
+    /// Events of the transport itself (a URL the browser refused at once).
+    pending: VecDeque<TransportEvent>,
+}
+
+impl std::fmt::Debug for BrowserTransport {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("BrowserTransport")
+            .field("connected", &self.connection.is_some())
+            .finish()
+    }
+}
+
+impl BrowserTransport {
+    pub fn new() -> Self {
+        Self::default()
+    }
+}
+
+impl Transport for BrowserTransport {
+    fn connect(&mut self, url: &str, hello: Vec<u8>) {
+        self.close();
+        match Connection::open(url, hello) {
+            Ok(c) => self.connection = Some(c),
+            Err(reason) => self.pending.push_back(TransportEvent::Closed {
+                reason,
+                how: Closing::Failed,
+            }),
+        }
+    }
+
+    fn send(&mut self, frame: Vec<u8>) {
+        if let Some(c) = &self.connection
+            && c.socket.ready_state() == WebSocket::OPEN
+        {
+            let _ = c.socket.send_with_u8_array(&frame);
+        }
+    }
+
+    fn close(&mut self) {
+        if let Some(c) = self.connection.take() {
+            c.close();
+        }
+    }
+
+    fn poll(&mut self, _wait: Duration) -> Option<TransportEvent> {
+        if let Some(event) = self.pending.pop_front() {
+            return Some(event);
+        }
+        let event = self.connection.as_ref()?.events.borrow_mut().pop_front();
+        if matches!(event, Some(TransportEvent::Closed { .. })) {
+            // The socket is done; its callbacks may go.
+            self.connection = None;
+        }
+        event
+    }
+}

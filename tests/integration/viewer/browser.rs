@@ -1,0 +1,209 @@
+//! The browser viewer in headless Chromium, over WebDriver: a real server
+//! on port 0 serves the page, the wasm and the stream; the canvas must
+//! show `farfield render`'s image of the camera in the URL, on WebGPU
+//! (SwiftShader) and on WebGL2; a drag must move the view and the page
+//! refine again to the new view's image; a server restart must leave the
+//! image up and the viewer resume asking only for what it lacks.
+
+use std::net::SocketAddr;
+use std::path::PathBuf;
+use std::sync::Mutex;
+use std::time::Duration;
+
+use farfield_serve::{RunningServer, ServerConfig, start};
+use farfield_tests::scratch;
+use serde_json::Value;
+
+use super::webdriver::Browser;
+use super::{bunny_in, camera_of_fragment, have, lit, missing, psnr, reference};
+use crate::streaming::runtime;
+
+const SIZE: (u32, u32) = (320, 240);
+/// SwiftShader draws on the CPU, and two tests may share it.
+const WAIT: Duration = Duration::from_secs(120);
+const START: &str = "eye=0.25,0.2,0.15&target=-0.017,0.11,-0.0015&fov=45";
+
+/// One browser at a time: each runs its GPU on the CPU.
+static ONE_BROWSER: Mutex<()> = Mutex::new(());
+
+const REFINED: &str = "return document.getElementById('farfield').dataset.refined === 'true'";
+const REPORT: &str = "const c = document.getElementById('farfield'); \
+    return {failed: document.body.dataset.failed || null, \
+            message: document.getElementById('message').innerText, \
+            status: c.dataset.status || null, hash: location.hash}";
+
+/// The viewer's built files, or `None` (having said why) when absent.
+fn web_dir() -> Option<PathBuf> {
+    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../web/dist");
+    match farfield_serve::web_assets::ready(Some(&dir)) {
+        Ok(()) => Some(dir),
+        Err(why) => {
+            missing(&format!(
+                "the browser tests need the built viewer ({why}): run web/build"
+            ));
+            None
+        }
+    }
+}
+
+/// The tools and files the browser tests need, or `None` when a tool is missing.
+fn setup(name: &str) -> Option<(PathBuf, PathBuf, PathBuf)> {
+    for tool in ["chromium", "chromedriver"] {
+        if !have(tool) {
+            missing(&format!(
+                "the browser tests need {tool} (apt-get install chromium chromium-driver)"
+            ));
+            return None;
+        }
+    }
+    let web = web_dir()?;
+    let dir = scratch(name);
+    let bunny = bunny_in(&dir)?;
+    Some((dir, bunny, web))
+}
+
+async fn serve(dir: &std::path::Path, web: &std::path::Path, listen: SocketAddr) -> RunningServer {
+    start(ServerConfig {
+        web: Some(web.to_owned()),
+        ..ServerConfig::new(dir, listen)
+    })
+    .await
+    .expect("server starts")
+}
+
+fn status(browser: &Browser) -> Value {
+    let text = browser.eval("return document.getElementById('farfield').dataset.status || 'null'");
+    serde_json::from_str(text.as_str().unwrap_or("null")).unwrap_or(Value::Null)
+}
+
+/// Waits for the page to be refined and checks its picture against the
+/// headless render of the camera in its address. Returns that address
+/// fragment and the picture.
+fn check_refined(browser: &Browser, bunny: &std::path::Path, what: &str) -> (String, Vec<u8>) {
+    browser.wait_for(what, REFINED, REPORT, WAIT);
+    let hash = browser.eval("return location.hash");
+    let hash = hash.as_str().unwrap_or_default().to_owned();
+    let (w, h, shot) = browser.canvas_pixels();
+    assert_eq!((w, h), SIZE, "the canvas fills the viewport");
+    // What the user sees is the canvas.
+    let (sw, sh, seen) = browser.screenshot();
+    assert_eq!((sw, sh), SIZE, "the viewport");
+    let same = psnr(&shot, &seen, SIZE.0, SIZE.1);
+    assert!(
+        same >= 40.0,
+        "{what}: the screen differs from the canvas ({same:.1} dB)"
+    );
+    let expected = reference(bunny, camera_of_fragment(&hash), SIZE.0, SIZE.1).unwrap();
+    let db = psnr(&expected, &shot, SIZE.0, SIZE.1);
+    eprintln!(
+        "{what}: {db:.1} dB against headless, {} lit pixels",
+        lit(&shot)
+    );
+    assert!(lit(&shot) > 2000, "{what}: the canvas shows the bunny");
+    assert!(
+        db >= 30.0,
+        "{what}: the canvas differs from the headless render ({db:.1} dB)"
+    );
+    (hash, shot)
+}
+
+#[test]
+fn the_browser_shows_the_headless_image_on_webgpu_and_webgl_and_refines_after_a_drag() {
+    let _one = ONE_BROWSER.lock().unwrap_or_else(|e| e.into_inner());
+    let Some((dir, bunny, web)) = setup("viewer-browser") else {
+        return;
+    };
+    let rt = runtime();
+    let server = rt.block_on(serve(&dir, &web, "127.0.0.1:0".parse().unwrap()));
+    let addr = server.local_addr();
+    let browser = Browser::start(SIZE.0, SIZE.1);
+    for (backend, adapter) in [("webgpu", "WebGpu"), ("webgl", "Gl")] {
+        browser.goto(&format!(
+            "http://{addr}/view/bunny?panel=0&backend={backend}#{START}"
+        ));
+        let (hash, first) = check_refined(&browser, &bunny, backend);
+        assert_eq!(
+            camera_of_fragment(&hash),
+            camera_of_fragment(START),
+            "{backend}: the page opens at the link's camera"
+        );
+        let used = status(&browser)["adapter"]
+            .as_str()
+            .unwrap_or_default()
+            .to_owned();
+        assert!(used.contains(adapter), "{backend}: drawn on {used:?}");
+        if backend == "webgpu" {
+            browser.drag((160, 120), (90, 30), 10);
+            let moved = format!(
+                "return document.getElementById('farfield').dataset.refined === 'true' \
+                 && location.hash !== {hash:?}"
+            );
+            browser.wait_for("refined after the drag", &moved, REPORT, WAIT);
+            let (after, second) = check_refined(&browser, &bunny, "after the drag");
+            assert_ne!(after, hash);
+            let change = psnr(&first, &second, SIZE.0, SIZE.1);
+            assert!(change < 25.0, "the picture did not change ({change:.1} dB)");
+        }
+    }
+    drop(browser);
+    rt.block_on(server.shutdown()).unwrap();
+}
+
+#[test]
+fn the_browser_viewer_keeps_its_image_through_a_server_restart() {
+    let _one = ONE_BROWSER.lock().unwrap_or_else(|e| e.into_inner());
+    let Some((dir, bunny, web)) = setup("viewer-restart") else {
+        return;
+    };
+    let rt = runtime();
+    let first = rt.block_on(serve(&dir, &web, "127.0.0.1:0".parse().unwrap()));
+    let addr = first.local_addr();
+    let browser = Browser::start(SIZE.0, SIZE.1);
+    browser.goto(&format!("http://{addr}/view/bunny?panel=0#{START}"));
+    let (_, before) = check_refined(&browser, &bunny, "before the restart");
+    rt.block_on(first.shutdown()).unwrap();
+    browser.wait_for(
+        "the page says the server went away",
+        "return document.getElementById('farfield').dataset.connection === 'reconnecting'",
+        REPORT,
+        WAIT,
+    );
+    let (_, _, during) = browser.screenshot();
+    assert!(
+        lit(&during) > 2000,
+        "the image stays while the server is away"
+    );
+    let second = rt.block_on(serve(&dir, &web, addr));
+    browser.wait_for(
+        "the page reconnects",
+        "return document.getElementById('farfield').dataset.connection === 'connected'",
+        REPORT,
+        WAIT,
+    );
+    let (_, after) = check_refined(&browser, &bunny, "after the restart");
+    assert!(psnr(&before, &after, SIZE.0, SIZE.1) >= 30.0);
+    // It had every page it needed, so it asked for none: the one page the
+    // new server sent is page 0, which every session gets with the header.
+    let served = second.metrics().pages_served;
+    assert!(
+        served <= 1,
+        "the viewer asked again for pages it had ({served} sent)"
+    );
+    drop(browser);
+    rt.block_on(second.shutdown()).unwrap();
+}
+
+#[test]
+fn an_unknown_scene_gets_a_page_that_links_back_to_the_list() {
+    let dir = scratch("viewer-unknown");
+    let rt = runtime();
+    let server = rt.block_on(serve(&dir, &dir, "127.0.0.1:0".parse().unwrap()));
+    let (status, body) = rt.block_on(crate::serve::support::http_get(
+        server.local_addr(),
+        "/view/nope%3Cb%3E",
+    ));
+    assert_eq!(status, 404);
+    assert!(body.contains("No scene named “nope&lt;b&gt;”"), "{body}");
+    assert!(body.contains("<a href=\"/\">"), "{body}");
+    rt.block_on(server.shutdown()).unwrap();
+}

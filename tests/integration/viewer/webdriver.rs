@@ -1,0 +1,224 @@
+//! Just enough WebDriver (W3C) to drive headless Chromium: a session, a
+//! page, scripts, pointer actions, screenshots.
+//!
+//! chromedriver runs as a child on a free port; the browser is Debian's
+//! chromium, with the flags that give it a WebGPU adapter on a machine
+//! without a GPU (SwiftShader) and keep it off the network.
+
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+use base64::Engine;
+use serde_json::{Value, json};
+
+/// A browser session; the browser and its driver end when dropped.
+pub(crate) struct Browser {
+    driver: Child,
+    base: String,
+    agent: ureq::Agent,
+    _profile: std::path::PathBuf,
+}
+
+impl Drop for Browser {
+    fn drop(&mut self) {
+        let _ = self.agent.delete(&self.base).call();
+        let _ = self.driver.kill();
+        let _ = self.driver.wait();
+    }
+}
+
+/// A port nothing listens on now.
+fn free_port() -> u16 {
+    std::net::TcpListener::bind("127.0.0.1:0")
+        .and_then(|l| l.local_addr())
+        .map(|a| a.port())
+        .expect("a free port")
+}
+
+impl Browser {
+    /// Starts chromedriver and a headless chromium whose viewport is
+    /// `width` x `height` CSS pixels at one device pixel each.
+    pub(crate) fn start(width: u32, height: u32) -> Self {
+        let port = free_port();
+        let (quiet, on) = farfield_render::DEVICE_SELECT_OFF;
+        let driver = Command::new("chromedriver")
+            .arg(format!("--port={port}"))
+            .env(quiet, on)
+            .stdout(Stdio::null())
+            .stderr(Stdio::null())
+            .spawn()
+            .expect("start chromedriver");
+        let agent: ureq::Agent = ureq::Agent::config_builder()
+            .http_status_as_error(false)
+            .timeout_global(Some(Duration::from_secs(120)))
+            .build()
+            .into();
+        let root = format!("http://127.0.0.1:{port}");
+        let started = Instant::now();
+        while agent.get(format!("{root}/status")).call().is_err() {
+            assert!(
+                started.elapsed() < Duration::from_secs(20),
+                "chromedriver did not start"
+            );
+            std::thread::sleep(Duration::from_millis(100));
+        }
+        let profile = std::env::temp_dir().join(format!("farfield-chromium-{port}"));
+        let args = [
+            "--headless=new".to_owned(),
+            "--no-sandbox".to_owned(),
+            "--enable-unsafe-webgpu".to_owned(),
+            "--enable-unsafe-swiftshader".to_owned(),
+            // Without these three a WebGPU canvas is never composited here:
+            // the page draws, but screenshots and the canvas's pixels stay blank.
+            "--use-angle=swiftshader".to_owned(),
+            "--enable-features=Vulkan".to_owned(),
+            "--use-vulkan=swiftshader".to_owned(),
+            "--disable-quic".to_owned(),
+            "--no-first-run".to_owned(),
+            "--disable-background-networking".to_owned(),
+            "--disable-component-update".to_owned(),
+            "--disable-sync".to_owned(),
+            "--force-device-scale-factor=1".to_owned(),
+            format!("--user-data-dir={}", profile.display()),
+        ];
+        let caps = json!({
+            "capabilities": { "alwaysMatch": {
+                "browserName": "chrome",
+                "goog:chromeOptions": { "binary": "/usr/bin/chromium", "args": args },
+            }}
+        });
+        let mut response = agent
+            .post(format!("{root}/session"))
+            .send_json(&caps)
+            .expect("new session");
+        let body: Value = response.body_mut().read_json().expect("session reply");
+        let id = body["value"]["sessionId"]
+            .as_str()
+            .unwrap_or_else(|| panic!("no session: {body}"))
+            .to_owned();
+        let browser = Self {
+            driver,
+            base: format!("{root}/session/{id}"),
+            agent,
+            _profile: profile,
+        };
+        // The viewport exactly, whatever the window around it (headless
+        // windows have a minimum width).
+        browser.post(
+            "goog/cdp/execute",
+            json!({ "cmd": "Emulation.setDeviceMetricsOverride", "params": {
+                "width": width, "height": height, "deviceScaleFactor": 1, "mobile": false,
+            }}),
+        );
+        browser
+    }
+
+    fn post(&self, path: &str, body: Value) -> Value {
+        let mut r = self
+            .agent
+            .post(format!("{}/{path}", self.base))
+            .send_json(&body)
+            .unwrap_or_else(|e| panic!("webdriver {path}: {e}"));
+        let v: Value = r.body_mut().read_json().expect("webdriver reply");
+        assert!(
+            v["value"].get("error").is_none(),
+            "webdriver {path}: {}",
+            v["value"]
+        );
+        v["value"].clone()
+    }
+
+    pub(crate) fn goto(&self, url: &str) {
+        self.post("url", json!({ "url": url }));
+    }
+
+    /// Runs `script` (a function body) in the page; its `return` value.
+    pub(crate) fn eval(&self, script: &str) -> Value {
+        self.post("execute/sync", json!({ "script": script, "args": [] }))
+    }
+
+    /// Waits until `script` returns `true`, up to `wait`; the last value
+    /// of `report` (a script) is in the failure message.
+    pub(crate) fn wait_for(&self, what: &str, script: &str, report: &str, wait: Duration) {
+        let started = Instant::now();
+        loop {
+            if self.eval(script) == Value::Bool(true) {
+                return;
+            }
+            if started.elapsed() > wait {
+                panic!("{what}: not after {wait:?} ({})", self.eval(report));
+            }
+            std::thread::sleep(Duration::from_millis(200));
+        }
+    }
+
+    /// A drag with the left button from (`x`, `y`) by (`dx`, `dy`) CSS
+    /// pixels, in `steps` moves.
+    pub(crate) fn drag(&self, (x, y): (i64, i64), (dx, dy): (i64, i64), steps: i64) {
+        let mut actions = vec![
+            json!({"type": "pointerMove", "duration": 0, "x": x, "y": y, "origin": "viewport"}),
+            json!({"type": "pointerDown", "button": 0}),
+        ];
+        for i in 1..=steps {
+            actions.push(json!({
+                "type": "pointerMove", "duration": 30, "origin": "viewport",
+                "x": x + dx * i / steps, "y": y + dy * i / steps,
+            }));
+        }
+        actions.push(json!({"type": "pointerUp", "button": 0}));
+        self.post(
+            "actions",
+            json!({ "actions": [{
+                "type": "pointer", "id": "mouse",
+                "parameters": { "pointerType": "mouse" },
+                "actions": actions,
+            }]}),
+        );
+    }
+
+    /// The viewport as the user sees it: (width, height, RGBA).
+    pub(crate) fn screenshot(&self) -> (u32, u32, Vec<u8>) {
+        let mut r = self
+            .agent
+            .get(format!("{}/screenshot", self.base))
+            .call()
+            .expect("screenshot");
+        let v: Value = r.body_mut().read_json().expect("screenshot reply");
+        decode_png(v["value"].as_str().expect("base64 PNG"))
+    }
+
+    /// The viewer's canvas as it drew its last frame (`farfield.capture_canvas()`,
+    /// a PNG data URL): (width, height, RGBA).
+    pub(crate) fn canvas_pixels(&self) -> (u32, u32, Vec<u8>) {
+        self.eval(
+            "const c = document.getElementById('farfield'); delete c.dataset.capture; \
+             window.farfield.capture_canvas(); return null",
+        );
+        let captured = "return !!document.getElementById('farfield').dataset.capture";
+        self.wait_for(
+            "the canvas's pixels",
+            captured,
+            "return null",
+            Duration::from_secs(30),
+        );
+        let url = self.eval("return document.getElementById('farfield').dataset.capture");
+        let url = url.as_str().unwrap_or_default();
+        decode_png(url.split_once(',').map_or(url, |(_, b64)| b64))
+    }
+}
+
+/// A base64 PNG as (width, height, RGBA).
+fn decode_png(b64: &str) -> (u32, u32, Vec<u8>) {
+    let png = base64::engine::general_purpose::STANDARD
+        .decode(b64)
+        .expect("base64");
+    let path = std::env::temp_dir().join(format!(
+        "farfield-shot-{}-{:?}.png",
+        std::process::id(),
+        std::thread::current().id()
+    ));
+    std::fs::write(&path, png).unwrap();
+    let image = farfield_image::read_png(&path).unwrap();
+    let _ = std::fs::remove_file(&path);
+    image
+}

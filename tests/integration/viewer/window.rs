@@ -1,0 +1,196 @@
+//! `farfield view` in a real window on a private Xvfb: what the window
+//! shows is `farfield render`'s image of the same camera, and real mouse
+//! input (xdotool) orbits it.
+//!
+//! The viewer runs in a child (this test binary again, on [`view_child`],
+//! which runs the `farfield` command line in-process), so its window and
+//! event loop are a process of their own, as a user's are.
+
+use std::io::{BufRead, BufReader};
+use std::process::{Child, Command, Stdio};
+use std::sync::mpsc::Receiver;
+use std::time::{Duration, Instant};
+
+use farfield_tests::scratch;
+
+use super::{bunny_in, camera_of_fragment, have, lit, missing, psnr, reference};
+use crate::xvfb::start_xvfb;
+
+/// The child's `farfield` arguments, tab-separated.
+const CHILD_ENV: &str = "FARFIELD_VIEW_CHILD_ARGS";
+const SIZE: (u32, u32) = (320, 240);
+const WAIT: Duration = Duration::from_secs(90);
+
+/// The viewer's process, killed when dropped.
+struct ViewerProcess {
+    child: Child,
+    lines: Receiver<String>,
+}
+
+impl Drop for ViewerProcess {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+impl ViewerProcess {
+    /// The next line starting with `prefix`, without it.
+    fn next(&mut self, prefix: &str) -> String {
+        let started = Instant::now();
+        while started.elapsed() < WAIT {
+            match self.lines.recv_timeout(Duration::from_millis(200)) {
+                Ok(line) => {
+                    if let Some(rest) = line.strip_prefix(prefix) {
+                        return rest.to_owned();
+                    }
+                }
+                Err(std::sync::mpsc::RecvTimeoutError::Timeout) => {
+                    if let Ok(Some(status)) = self.child.try_wait() {
+                        panic!("the viewer exited ({status}) before printing {prefix:?}");
+                    }
+                }
+                Err(std::sync::mpsc::RecvTimeoutError::Disconnected) => {
+                    panic!("the viewer closed its output before printing {prefix:?}")
+                }
+            }
+        }
+        panic!("no {prefix:?} from the viewer in {WAIT:?}");
+    }
+
+    /// Waits for the next refined view: its camera and the window's picture.
+    fn refined(&mut self) -> (String, Vec<u8>) {
+        let camera = self.next("refined camera=");
+        let png = self.next("saved png=");
+        let (w, h, rgba) = farfield_image::read_png(&png).unwrap();
+        assert_eq!((w, h), SIZE, "the window's size");
+        (camera, rgba)
+    }
+}
+
+fn xdotool(display: &str, args: &[&str]) -> String {
+    let out = Command::new("xdotool")
+        .args(args)
+        .env("DISPLAY", display)
+        .output()
+        .expect("xdotool");
+    assert!(
+        out.status.success(),
+        "xdotool {args:?}: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8_lossy(&out.stdout).trim().to_owned()
+}
+
+#[test]
+fn the_window_shows_the_headless_image_and_orbits_under_the_mouse() {
+    let Some(xvfb) = start_xvfb() else {
+        return missing("the window test needs Xvfb (apt-get install xvfb)");
+    };
+    if !have("xdotool") {
+        return missing("the window test needs xdotool (apt-get install xdotool)");
+    }
+    let dir = scratch("viewer-window");
+    let Some(bunny) = bunny_in(&dir) else {
+        return;
+    };
+    let display = xvfb.display().to_owned();
+    let png = dir.join("window.png");
+    let start = "eye=0.25,0.2,0.15&target=-0.017,0.11,-0.0015&fov=45";
+    let args = [
+        "view",
+        "--file",
+        bunny.to_str().unwrap(),
+        "--size",
+        "320x240",
+        "--no-panel",
+        "--camera",
+        &start.replace('&', ","),
+        "--screenshot-when-refined",
+        png.to_str().unwrap(),
+    ]
+    .join("\t");
+    let mut child = Command::new(std::env::current_exe().unwrap())
+        .args(["viewer::window::view_child", "--exact", "--nocapture"])
+        .env(CHILD_ENV, args)
+        .env("DISPLAY", &display)
+        .env_remove("WAYLAND_DISPLAY")
+        .env(
+            farfield_render::DEVICE_SELECT_OFF.0,
+            farfield_render::DEVICE_SELECT_OFF.1,
+        )
+        .stdout(Stdio::piped())
+        .stderr(Stdio::inherit())
+        .spawn()
+        .expect("spawn the viewer");
+    let stdout = child.stdout.take().unwrap();
+    let (tx, lines) = std::sync::mpsc::channel();
+    std::thread::spawn(move || {
+        for line in BufReader::new(stdout).lines().map_while(Result::ok) {
+            if tx.send(line).is_err() {
+                break;
+            }
+        }
+    });
+    let mut viewer = ViewerProcess { child, lines };
+
+    let (camera, first) = viewer.refined();
+    assert_eq!(
+        camera_of_fragment(&camera),
+        camera_of_fragment(start),
+        "the window opens at the camera it was given"
+    );
+    let Some(expected) = reference(&bunny, camera_of_fragment(&camera), SIZE.0, SIZE.1) else {
+        return;
+    };
+    let db = psnr(&expected, &first, SIZE.0, SIZE.1);
+    eprintln!("window vs headless: {db:.1} dB, {} lit pixels", lit(&first));
+    assert!(lit(&first) > 2000, "the window shows the bunny");
+    assert!(
+        db >= 30.0,
+        "the window differs from the headless render: {db:.1} dB"
+    );
+
+    // A real drag across the window: the view orbits and refines again.
+    let window = xdotool(&display, &["search", "--name", "farfield"]);
+    let window = window
+        .lines()
+        .next()
+        .expect("the viewer's window")
+        .to_owned();
+    xdotool(&display, &["mousemove", "--window", &window, "160", "120"]);
+    xdotool(&display, &["mousedown", "1"]);
+    for _ in 0..10 {
+        xdotool(&display, &["mousemove_relative", "--", "9", "3"]);
+        std::thread::sleep(Duration::from_millis(30));
+    }
+    xdotool(&display, &["mouseup", "1"]);
+    let (moved, second) = viewer.refined();
+    assert_ne!(moved, camera, "the drag moved the camera");
+    let expected = reference(&bunny, camera_of_fragment(&moved), SIZE.0, SIZE.1).unwrap();
+    let db = psnr(&expected, &second, SIZE.0, SIZE.1);
+    let change = psnr(&first, &second, SIZE.0, SIZE.1);
+    eprintln!("after the drag: {db:.1} dB against headless, {change:.1} dB against before");
+    assert!(
+        db >= 30.0,
+        "after the drag the window differs from the headless render: {db:.1} dB"
+    );
+    assert!(
+        change < 25.0,
+        "the picture did not change with the camera ({change:.1} dB)"
+    );
+}
+
+/// The child: `farfield` with the arguments in [`CHILD_ENV`], in-process.
+#[test]
+fn view_child() {
+    let Ok(args) = std::env::var(CHILD_ENV) else {
+        return;
+    };
+    use clap::Parser;
+    let cli = farfield_client::cli::Cli::try_parse_from(
+        std::iter::once("farfield").chain(args.split('\t')),
+    )
+    .expect("arguments");
+    farfield_client::cli::run(cli).expect("farfield view");
+}

@@ -1,0 +1,515 @@
+//! [`ViewerApp`]: the viewer as an eframe app, the same in a window and in
+//! a browser tab.
+//!
+//! Each egui frame: take the pages that arrived (never waiting), turn the
+//! input into camera motion, draw the scene into a texture on egui's own
+//! device ([`farfield_render::Renderer::for_texture`]), show it under the
+//! panel, and ask for another frame while anything can still change
+//! (the camera is easing, the view is not refined, the server is away).
+//! What differs between a window and a page (the URL, screenshots, what a
+//! test script reads) is behind [`Platform`].
+
+use std::sync::{Arc, Mutex};
+
+use egui::{Color32, Rect, Sense, Vec2, pos2};
+use farfield_render::{Renderer, SplatStyle};
+use farfield_traverse::DrawList;
+use farfield_view::camera_spec::CameraSpec;
+use farfield_view::frame_loop::{LastCut, draw_frame};
+use farfield_view::viewer::Viewer;
+use web_time::Instant;
+
+use crate::input::read_input;
+use crate::panel::{self, Settings};
+use crate::pick::pick_splat;
+use crate::refine::{CutState, Refinement};
+use crate::rig::{CameraRig, Orbit};
+use crate::status::{Connection, Status};
+
+/// What a front end tells the viewer at start.
+#[derive(Debug, Clone)]
+pub struct AppOptions {
+    /// The camera to open at (a link's, or the command line's); fit to the
+    /// scene when `None`.
+    pub camera: Option<CameraSpec>,
+    pub settings: Settings,
+    /// Show the panel at start (it can be toggled with Tab or its button).
+    pub show_panel: bool,
+}
+
+impl Default for AppOptions {
+    fn default() -> Self {
+        Self {
+            camera: None,
+            settings: Settings::default(),
+            show_panel: true,
+        }
+    }
+}
+
+/// What differs between a window and a browser page.
+pub trait Platform {
+    /// The camera came to rest here (a page writes it into its URL).
+    fn camera_rested(&mut self, _camera: &CameraSpec) {}
+    /// After every frame: what the panel shows (a page exposes it to scripts).
+    fn status(&mut self, _status: &Status) {}
+    /// Whether to take a screenshot now, unasked (a window told to save
+    /// one whenever the view is refined, a script asking a page), and of what.
+    fn wants_screenshot(&mut self, _status: &Status) -> Shot {
+        Shot::None
+    }
+    /// A screenshot the user (or [`Self::wants_screenshot`]) asked for:
+    /// RGBA rows, top first.
+    fn screenshot(&mut self, width: u32, height: u32, rgba: Vec<u8>);
+    /// Takes the screenshot the user asked for itself, when the platform
+    /// has a better way (a page reads its canvas); `false` leaves it to
+    /// the app ([`Shot::Scene`]).
+    fn screenshot_itself(&mut self) -> bool {
+        false
+    }
+}
+
+/// What a screenshot shows.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Shot {
+    None,
+    /// The scene as drawn, without the panel (the screenshot button's):
+    /// read back from the scene's texture.
+    Scene,
+    /// The whole window as presented, panel and all (egui's capture of
+    /// the frame; in a browser on WebGPU this may fail, so pages use
+    /// [`Shot::Scene`]).
+    Window,
+}
+
+/// The viewer.
+pub struct ViewerApp {
+    viewer: Viewer,
+    platform: Box<dyn Platform>,
+    options: AppOptions,
+    renderer: Option<Renderer>,
+    /// The scene texture as egui knows it, and the renderer's generation of it.
+    texture: Option<(egui::TextureId, u64)>,
+    rig: Option<CameraRig>,
+    refine: Refinement,
+    cut: LastCut,
+    rgba: Vec<u8>,
+    show_panel: bool,
+    flying: bool,
+    status: Status,
+    last_frame: Instant,
+    rested_at: Option<CameraSpec>,
+    /// Validation errors the device reported (a browser's, mostly).
+    gpu_error: Arc<Mutex<Option<String>>>,
+    screenshots: Arc<Mutex<Vec<Arc<egui::ColorImage>>>>,
+}
+
+impl std::fmt::Debug for ViewerApp {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("ViewerApp")
+            .field("status", &self.status)
+            .finish_non_exhaustive()
+    }
+}
+
+impl ViewerApp {
+    /// A viewer of `viewer`'s scene in the eframe app being created.
+    pub fn new(
+        cc: &eframe::CreationContext<'_>,
+        viewer: Viewer,
+        options: AppOptions,
+        platform: Box<dyn Platform>,
+    ) -> anyhow::Result<Self> {
+        let state = cc
+            .wgpu_render_state
+            .as_ref()
+            .ok_or_else(|| anyhow::anyhow!("the viewer needs eframe's wgpu renderer"))?;
+        let gpu_error: Arc<Mutex<Option<String>>> = Arc::default();
+        {
+            let gpu_error = gpu_error.clone();
+            state.device.on_uncaptured_error(Arc::new(move |e| {
+                tracing::error!("GPU: {e}");
+                if let Ok(mut slot) = gpu_error.lock() {
+                    slot.get_or_insert_with(|| e.to_string());
+                }
+            }));
+        }
+        {
+            let gpu_error = gpu_error.clone();
+            state
+                .device
+                .set_device_lost_callback(move |reason, message| {
+                    tracing::error!("GPU device lost ({reason:?}): {message}");
+                    if let Ok(mut slot) = gpu_error.lock() {
+                        *slot = Some(format!("the GPU device was lost ({reason:?}): {message}"));
+                    }
+                });
+        }
+        let renderer = Renderer::for_texture(
+            state.adapter.clone(),
+            state.device.clone(),
+            state.queue.clone(),
+            1,
+            1,
+        )?;
+        let s = &options.settings;
+        let refine = Refinement::new(s.threshold, s.target_frame_ms, s.node_budget);
+        let status = Status {
+            adapter: renderer.adapter_description(),
+            ..Status::default()
+        };
+        Ok(Self {
+            viewer,
+            platform,
+            show_panel: options.show_panel,
+            options,
+            renderer: Some(renderer),
+            texture: None,
+            rig: None,
+            refine,
+            cut: LastCut::default(),
+            rgba: Vec::new(),
+            flying: false,
+            status,
+            last_frame: Instant::now(),
+            rested_at: None,
+            gpu_error,
+            screenshots: Arc::default(),
+        })
+    }
+
+    /// Takes what arrived; a session that ended is shown, not fatal.
+    fn pump(&mut self) {
+        if let Err(e) = self.viewer.pump(std::time::Duration::ZERO) {
+            self.status.error = Some(format!("{e:#}"));
+        }
+    }
+
+    /// Makes the rig when the scene's header first arrives.
+    fn make_rig(&mut self) {
+        if self.rig.is_none() {
+            let Some(header) = self.viewer.header() else {
+                return;
+            };
+            let fov = 45.0;
+            let start = match &self.options.camera {
+                Some(spec) => Orbit::from_spec(spec, header),
+                None => Orbit::fit(header, fov),
+            };
+            self.rig = Some(CameraRig::new(start, header));
+        }
+    }
+
+    /// Draws the scene for `rect` (points) and handles its input.
+    fn scene(&mut self, ui: &mut egui::Ui, rect: Rect, frame: &eframe::Frame, dt: f64) {
+        let response = ui.allocate_rect(rect, Sense::click_and_drag());
+        let ppp = ui.ctx().pixels_per_point();
+        let (width, height) = (
+            (rect.width() * ppp).round().max(1.0) as u32,
+            (rect.height() * ppp).round().max(1.0) as u32,
+        );
+        let input = read_input(ui, &response, rect, &mut self.flying);
+        let flying = self.flying;
+        let pick = response
+            .double_clicked()
+            .then(|| response.interact_pointer_pos())
+            .flatten();
+        let reset = ui.input(|i| i.key_pressed(egui::Key::R)) || self.status.reset_requested;
+        self.status.reset_requested = false;
+        self.make_rig();
+        let Some(rig) = self.rig.as_mut() else {
+            ui.painter().rect_filled(rect, 0.0, Color32::BLACK);
+            return;
+        };
+        if reset {
+            rig.reset();
+        }
+        rig.apply(&input, flying, rect.height() * ppp, dt);
+        if let Some(at) = pick
+            && let Some(DrawList::Splats(splats)) = self.cut.draw_list()
+        {
+            let camera = rig.shown().camera(width, height);
+            let px = ((at - rect.min) * ppp).to_pos2();
+            if let Some(point) = pick_splat(splats, &camera, px.x, px.y) {
+                rig.focus(point);
+            }
+        }
+        let was_moving = !rig.at_rest();
+        rig.ease(dt);
+        let moving = was_moving || input != Default::default();
+        let camera = rig.shown().camera(width, height);
+        let rest_spec = (!moving).then(|| rig.shown().spec());
+
+        let Some(renderer) = self.renderer.as_mut() else {
+            return;
+        };
+        renderer.resize(width, height);
+        let s = &self.options.settings;
+        let style = SplatStyle {
+            kernel: s.kernel,
+            coverage: s.coverage,
+            ..SplatStyle::default()
+        };
+        let started = Instant::now();
+        match draw_frame(
+            &mut self.viewer,
+            renderer,
+            &camera,
+            self.refine.threshold(),
+            &style,
+            &mut self.cut,
+            &mut self.rgba,
+        ) {
+            Ok(times) => {
+                let frame_ms = started.elapsed().as_secs_f64() * 1e3;
+                let missing = self
+                    .cut
+                    .wanted()
+                    .iter()
+                    .filter(|w| !self.viewer.gave_up(w.page))
+                    .count();
+                let cut = CutState {
+                    drawn: self.cut.counts().drawn,
+                    used_pages: self.cut.touched_pages().len(),
+                    missing_pages: missing,
+                    root: self.viewer.hierarchy().is_some_and(|h| h.is_resident(0)),
+                };
+                self.status.threshold = self.refine.threshold();
+                self.refine.after_frame(moving, frame_ms, cut);
+                self.status.draw_ms = times.traverse_ms + times.upload_ms + times.draw_ms;
+                self.status.nodes_drawn = cut.drawn;
+                self.status.wanted_pages = missing;
+            }
+            Err(e) => self.status.error = Some(format!("{e:#}")),
+        }
+        self.show_texture(ui, rect, frame);
+        if let Some(spec) = rest_spec
+            && self.refine.refined()
+            && self.rested_at != Some(spec)
+        {
+            self.platform.camera_rested(&spec);
+            self.rested_at = Some(spec);
+        }
+    }
+
+    /// Paints the renderer's texture over `rect`, registering it with egui
+    /// first when it is new.
+    fn show_texture(&mut self, ui: &egui::Ui, rect: Rect, frame: &eframe::Frame) {
+        let (Some(renderer), Some(state)) = (self.renderer.as_ref(), frame.wgpu_render_state())
+        else {
+            return;
+        };
+        let Some((view, generation)) = renderer.shown_texture() else {
+            return;
+        };
+        let mut egui_renderer = state.renderer.write();
+        let id = match self.texture {
+            Some((id, g)) if g == generation => id,
+            Some((id, _)) => {
+                egui_renderer.update_egui_texture_from_wgpu_texture(
+                    &state.device,
+                    view,
+                    wgpu::FilterMode::Nearest,
+                    id,
+                );
+                id
+            }
+            None => egui_renderer.register_native_texture(
+                &state.device,
+                view,
+                wgpu::FilterMode::Nearest,
+            ),
+        };
+        self.texture = Some((id, generation));
+        let uv = Rect::from_min_max(pos2(0.0, 0.0), pos2(1.0, 1.0));
+        ui.painter().image(id, rect, uv, Color32::WHITE);
+    }
+
+    /// Refreshes the status the panel shows and the platform reads.
+    fn update_status(&mut self, dt: f64) {
+        let st = &mut self.status;
+        if dt > 0.0 {
+            let fps = 1.0 / dt;
+            st.fps = if st.fps == 0.0 {
+                fps
+            } else {
+                st.fps * 0.9 + fps * 0.1
+            };
+        }
+        st.frame_ms = dt * 1e3;
+        let stats = self.viewer.stats();
+        st.mb_received = stats.bytes_received as f64 / 1e6;
+        st.in_flight_pages = self.viewer.outstanding();
+        st.resident_pages = self.viewer.hierarchy().map_or(0, |h| h.resident_pages());
+        st.resident_mb = self
+            .viewer
+            .hierarchy()
+            .map_or(0.0, |h| h.resident_bytes() as f64 / 1e6);
+        st.progress = self.refine.progress();
+        st.refined = self.refine.refined();
+        st.connection = if !self.viewer.is_streamed() {
+            Connection::File
+        } else if self.viewer.is_connected() {
+            Connection::Connected
+        } else if self.viewer.header().is_some() {
+            Connection::Reconnecting
+        } else {
+            Connection::Connecting
+        };
+        st.last_error = stats.last_error.clone();
+        if let Ok(mut e) = self.gpu_error.lock()
+            && let Some(e) = e.take()
+        {
+            st.error = Some(format!("GPU: {e}"));
+        }
+        if let Some(rig) = &self.rig {
+            st.camera = Some(rig.shown().spec());
+        }
+    }
+}
+
+impl eframe::App for ViewerApp {
+    fn ui(&mut self, ui: &mut egui::Ui, frame: &mut eframe::Frame) {
+        let now = Instant::now();
+        let dt = now.duration_since(self.last_frame).as_secs_f64().min(0.25);
+        self.last_frame = now;
+        self.pump();
+        if ui.input(|i| i.key_pressed(egui::Key::Tab)) {
+            self.show_panel = !self.show_panel;
+        }
+        if self.show_panel {
+            let before = self.options.settings.clone();
+            let action = panel::show(ui, &self.status, &mut self.options.settings);
+            let s = &self.options.settings;
+            if *s != before {
+                self.refine = Refinement::new(s.threshold, s.target_frame_ms, s.node_budget);
+                self.viewer.set_cache_bytes(s.cache_bytes());
+            }
+            if action.screenshot && !self.platform.screenshot_itself() {
+                self.request_shot(ui.ctx(), Shot::Scene);
+            }
+            self.status.reset_requested |= action.reset;
+            self.show_panel &= !action.hide;
+        } else if ui.input(|i| {
+            // The button to bring the panel back shows only while the
+            // pointer is near it, so a hidden panel leaves the picture clean.
+            i.pointer
+                .hover_pos()
+                .is_some_and(|p| p.x < 160.0 && p.y < 80.0)
+        }) {
+            let shown = egui::Area::new(egui::Id::unique("farfield show panel"))
+                .fixed_pos(pos2(8.0, 8.0))
+                .show(ui.ctx(), |ui| ui.button("☰ panel").clicked())
+                .inner;
+            self.show_panel |= shown;
+        }
+        let rect = ui.available_rect_before_wrap();
+        self.scene(ui, rect, frame, dt);
+        self.update_status(dt);
+        if let Some(message) = self.status.error.clone().or_else(|| self.waiting_message()) {
+            egui::Area::new(egui::Id::unique("farfield message"))
+                .anchor(egui::Align2::CENTER_BOTTOM, Vec2::new(0.0, -16.0))
+                .show(ui.ctx(), |ui| {
+                    egui::Frame::popup(ui.style()).show(ui, |ui| ui.label(message));
+                });
+        }
+        let shots: Vec<_> = self
+            .screenshots
+            .lock()
+            .map(|mut s| std::mem::take(&mut *s))
+            .unwrap_or_default();
+        for image in shots {
+            let [w, h] = image.size;
+            let rgba = image.pixels.iter().flat_map(|c| c.to_array()).collect();
+            self.platform.screenshot(w as u32, h as u32, rgba);
+        }
+        self.platform.status(&self.status);
+        let shot = self.platform.wants_screenshot(&self.status);
+        self.request_shot(ui.ctx(), shot);
+        let capturing = self.take_scene_capture();
+        let busy =
+            !self.status.refined || capturing || self.rig.as_ref().is_some_and(|r| !r.at_rest());
+        if busy {
+            ui.ctx().request_repaint();
+        } else {
+            // Nothing changes at rest but the network: look again soon.
+            ui.ctx()
+                .request_repaint_after(std::time::Duration::from_millis(250));
+        }
+    }
+
+    #[cfg(target_arch = "wasm32")]
+    fn as_any_mut(&mut self) -> Option<&mut dyn std::any::Any> {
+        Some(&mut *self)
+    }
+}
+
+impl ViewerApp {
+    /// What to say while there is nothing to see yet, or the server is away.
+    fn waiting_message(&self) -> Option<String> {
+        match self.status.connection {
+            Connection::Connecting => Some(match &self.status.last_error {
+                Some(e) => format!("connecting to the server… ({e})"),
+                None => "connecting to the server…".into(),
+            }),
+            Connection::Reconnecting => {
+                Some("the server went away: showing what is here, reconnecting…".into())
+            }
+            _ => None,
+        }
+    }
+
+    /// Starts a screenshot; it comes to [`Platform::screenshot`] a frame
+    /// or two later.
+    fn request_shot(&mut self, ctx: &egui::Context, shot: Shot) {
+        match shot {
+            Shot::None => {}
+            Shot::Scene => {
+                if let Some(Err(e)) = self.renderer.as_mut().map(Renderer::request_capture) {
+                    self.status.error = Some(format!("screenshot: {e:#}"));
+                }
+            }
+            Shot::Window => self.request_window_capture(ctx),
+        }
+    }
+
+    /// Hands a finished scene capture to the platform; whether one is
+    /// still under way (frames keep coming until it is back).
+    fn take_scene_capture(&mut self) -> bool {
+        let Some(renderer) = self.renderer.as_mut() else {
+            return false;
+        };
+        match renderer.poll_capture() {
+            None => renderer.capture_pending(),
+            Some(Ok((w, h, mut rgba))) => {
+                // The scene's alpha is not the picture's: opaque, as shown.
+                rgba.chunks_mut(4).for_each(|p| p[3] = 255);
+                self.platform.screenshot(w, h, rgba);
+                false
+            }
+            Some(Err(e)) => {
+                self.status.error = Some(format!("screenshot: {e:#}"));
+                false
+            }
+        }
+    }
+
+    /// Asks egui for a picture of the next frame, window and all.
+    fn request_window_capture(&self, ctx: &egui::Context) {
+        let shots = self.screenshots.clone();
+        let repaint = ctx.clone();
+        ctx.send_viewport_cmd(egui::ViewportCommand::Screenshot(
+            egui::ScreenshotCallback::new(move |image| {
+                if let Ok(mut s) = shots.lock() {
+                    s.push(image);
+                }
+                repaint.request_repaint();
+            }),
+        ));
+    }
+
+    /// The status the panel shows.
+    pub fn status(&self) -> &Status {
+        &self.status
+    }
+}

@@ -1,0 +1,27 @@
+//! farfield-viewer: the interactive viewer, one code for a native window
+//! and a browser tab.
+//!
+//! An eframe app ([`app::ViewerApp`]) over the client core
+//! (`farfield-view`'s `Viewer` and frame loop): the scene drawn into a
+//! texture on egui's wgpu device, a panel beside it, camera controls that
+//! people expect from Potree or a CAD viewer. The front ends are thin: the
+//! `farfield view` command opens a window; `farfield-web` starts the same
+//! app on a page's canvas with the page's `WebSocket`.
+//!
+//! - [`rig`]: the camera (orbit, pan, zoom toward the cursor, fly, focus,
+//!   reset), eased toward where input put it;
+//! - [`input`]: egui's pointer, wheel, touch and keys as the rig's input;
+//! - [`refine`]: the frame budget while moving, refinement at rest, progress;
+//! - [`panel`]: stats and settings; [`status`]: what a frame reports;
+//! - [`link`]: the camera in a URL fragment; [`pick`]: what is under the cursor.
+
+pub mod app;
+pub mod input;
+pub mod link;
+pub mod panel;
+pub mod pick;
+pub mod refine;
+pub mod rig;
+pub mod status;
+
+pub use app::{AppOptions, Platform, Shot, ViewerApp};

@@ -1,0 +1,185 @@
+//! Starting the viewer on the page, and what the page learns from it.
+
+use std::cell::Cell;
+use std::time::Duration;
+
+use base64::Engine;
+
+use farfield_net::SessionOptions;
+use farfield_net::browser::BrowserTransport;
+use farfield_view::camera_spec::CameraSpec;
+use farfield_view::viewer::Viewer;
+use farfield_viewer::link::{camera_fragment, parse_fragment};
+use farfield_viewer::status::Status;
+use farfield_viewer::{Platform, ViewerApp};
+use wasm_bindgen::JsCast;
+use wasm_bindgen::prelude::*;
+use web_sys::HtmlCanvasElement;
+
+use crate::query::{self, Backend};
+
+/// Starts the viewer of the scene this page's path names on the canvas
+/// with id `canvas_id`. Fails (a rejected promise, which the page shows)
+/// when the address is bad or the browser can draw with neither WebGPU
+/// nor WebGL2.
+#[wasm_bindgen]
+pub async fn start(canvas_id: String) -> Result<(), JsValue> {
+    // eframe's and wgpu's warnings go to the console (a second start keeps the first logger).
+    let _ = eframe::WebLogger::init(log::LevelFilter::Warn);
+    let window = web_sys::window().ok_or("no window")?;
+    let location = window.location();
+    let path = location.pathname()?;
+    let scene = path
+        .strip_prefix("/view/")
+        .filter(|s| !s.is_empty() && !s.contains('/'))
+        .ok_or_else(|| format!("{path} is not /view/<scene>"))?;
+    let scene = js_sys::decode_uri_component(scene)?
+        .as_string()
+        .unwrap_or_default();
+    let query = query::parse(&location.search()?)?;
+    let mut options = query.options;
+    options.camera = parse_fragment(&location.hash()?)?;
+    let canvas = window
+        .document()
+        .ok_or("no document")?
+        .get_element_by_id(&canvas_id)
+        .ok_or_else(|| format!("no element #{canvas_id}"))?
+        .dyn_into::<HtmlCanvasElement>()?;
+
+    let session = SessionOptions {
+        token: query.token,
+        // A viewer waits for its server however long it takes, saying so.
+        first_connect_grace: Duration::from_secs(365 * 24 * 3600),
+        ..SessionOptions::default()
+    };
+    let viewer = Viewer::over(
+        Box::new(BrowserTransport::new()),
+        &location.origin()?,
+        &scene,
+        session,
+        options.settings.cache_bytes(),
+    );
+    let mut web_options = eframe::WebOptions {
+        dithering: false,
+        ..Default::default()
+    };
+    if query.backend == Backend::WebGl
+        && let eframe::egui_wgpu::WgpuSetup::CreateNew(create) =
+            &mut web_options.wgpu_options.wgpu_setup
+    {
+        create.instance_descriptor.backends = wgpu::Backends::GL;
+    }
+    let page = WebPage {
+        canvas: canvas.clone(),
+        title: scene.clone(),
+    };
+    eframe::WebRunner::new()
+        .start(
+            canvas,
+            web_options,
+            Box::new(move |cc| {
+                let app = ViewerApp::new(cc, viewer, options, Box::new(page))
+                    .map_err(|e| format!("{e:#}"))?;
+                Ok(Box::new(app))
+            }),
+        )
+        .await
+}
+
+thread_local! {
+    /// A script asked for the canvas's pixels ([`capture_canvas`]).
+    static CAPTURE_ASKED: Cell<bool> = const { Cell::new(false) };
+}
+
+/// Asks for the canvas's pixels as the next frame draws them (panel and
+/// all); they arrive as a PNG data URL in the canvas's `data-capture`
+/// attribute. The browser tests read it, since headless Chromium's own
+/// screenshot shows a WebGPU canvas blank.
+#[wasm_bindgen]
+pub fn capture_canvas() {
+    CAPTURE_ASKED.with(|c| c.set(true));
+}
+
+/// The page's side of the viewer.
+struct WebPage {
+    canvas: HtmlCanvasElement,
+    title: String,
+}
+
+impl WebPage {
+    /// Reads the canvas once this frame is drawn and hands its PNG data
+    /// URL to `then`. A WebGPU canvas holds its picture only until the
+    /// browser presents it, so the read runs as a microtask: after the
+    /// frame's callback has drawn (eframe paints after the app's `ui`) and
+    /// before the page is composited. This also avoids mapping a buffer,
+    /// which fails in Chromium's WebGPU here ("a valid external Instance
+    /// reference no longer exists").
+    fn after_this_frame(&self, then: impl FnOnce(&HtmlCanvasElement, String) + 'static) {
+        let canvas = self.canvas.clone();
+        wasm_bindgen_futures::spawn_local(async move {
+            if let Ok(url) = canvas.to_data_url() {
+                then(&canvas, url);
+            }
+        });
+    }
+}
+
+impl Platform for WebPage {
+    fn camera_rested(&mut self, camera: &CameraSpec) {
+        let (Some(window), Some(fragment)) = (web_sys::window(), camera_fragment(camera)) else {
+            return;
+        };
+        if let Ok(history) = window.history() {
+            let url = format!("#{fragment}");
+            let _ = history.replace_state_with_url(&JsValue::NULL, "", Some(&url));
+        }
+    }
+
+    fn status(&mut self, status: &Status) {
+        let data = self.canvas.dataset();
+        let _ = data.set("refined", if status.refined { "true" } else { "false" });
+        let _ = data.set("progress", &format!("{:.4}", status.progress));
+        let _ = data.set("connection", status.connection.label());
+        if let Ok(json) = serde_json::to_string(status) {
+            let _ = data.set("status", &json);
+        }
+        if CAPTURE_ASKED.with(|c| c.replace(false)) {
+            self.after_this_frame(|canvas, url| {
+                let _ = canvas.dataset().set("capture", &url);
+            });
+        }
+    }
+
+    fn screenshot_itself(&mut self) -> bool {
+        let name = format!("{}.png", self.title);
+        self.after_this_frame(move |_, url| {
+            let _ = download(&url, &name);
+        });
+        true
+    }
+
+    fn screenshot(&mut self, width: u32, height: u32, rgba: Vec<u8>) {
+        let Ok(png) = farfield_image::encode_png(width, height, &rgba) else {
+            return;
+        };
+        let data = base64::engine::general_purpose::STANDARD.encode(&png);
+        let _ = download(
+            &format!("data:image/png;base64,{data}"),
+            &format!("{}.png", self.title),
+        );
+    }
+}
+
+/// Offers the data URL `url` to the user as a file named `name`.
+fn download(url: &str, name: &str) -> Result<(), JsValue> {
+    let document = web_sys::window()
+        .and_then(|w| w.document())
+        .ok_or("no document")?;
+    let a = document
+        .create_element("a")?
+        .dyn_into::<web_sys::HtmlAnchorElement>()?;
+    a.set_href(url);
+    a.set_download(name);
+    a.click();
+    Ok(())
+}

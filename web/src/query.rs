@@ -1,0 +1,66 @@
+//! The viewer's options from the page's query string:
+//! `?panel=0&backend=webgl&kernel=round&threshold=2&budget=N&cache_mib=M&access_token=T`.
+
+use farfield_render::Kernel;
+use farfield_viewer::AppOptions;
+use web_sys::UrlSearchParams;
+
+/// Which of the browser's graphics APIs to use.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Backend {
+    /// WebGPU where the browser has it, WebGL2 otherwise.
+    Auto,
+    WebGl,
+}
+
+/// What the query asks for.
+#[derive(Debug)]
+pub struct Query {
+    pub options: AppOptions,
+    pub backend: Backend,
+    pub token: Option<String>,
+}
+
+/// Reads `search` (with or without `?`); a bad value is an error naming it.
+pub fn parse(search: &str) -> Result<Query, String> {
+    let params = UrlSearchParams::new_with_str(search).map_err(|_| "bad query".to_owned())?;
+    let mut options = AppOptions::default();
+    let number = |key: &str| -> Result<Option<f64>, String> {
+        params
+            .get(key)
+            .map(|v| {
+                v.parse::<f64>()
+                    .ok()
+                    .filter(|x| x.is_finite() && *x >= 0.0)
+                    .ok_or_else(|| format!("{key}={v} is not a number of at least 0"))
+            })
+            .transpose()
+    };
+    if let Some(v) = params.get("panel") {
+        options.show_panel = !matches!(v.as_str(), "0" | "false" | "no");
+    }
+    if let Some(t) = number("threshold")? {
+        options.settings.threshold = t;
+    }
+    if let Some(b) = number("budget")? {
+        options.settings.node_budget = b as u64;
+    }
+    if let Some(m) = number("cache_mib")? {
+        options.settings.cache_mib = (m as u64).max(1);
+    }
+    options.settings.kernel = match params.get("kernel").as_deref() {
+        None | Some("square") => Kernel::Square,
+        Some("round") => Kernel::Round,
+        Some(other) => return Err(format!("kernel={other} is not square or round")),
+    };
+    let backend = match params.get("backend").as_deref() {
+        None | Some("auto") | Some("webgpu") => Backend::Auto,
+        Some("webgl") | Some("webgl2") => Backend::WebGl,
+        Some(other) => return Err(format!("backend={other} is not webgpu or webgl")),
+    };
+    Ok(Query {
+        options,
+        backend,
+        token: params.get("access_token"),
+    })
+}
