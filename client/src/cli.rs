@@ -151,6 +151,10 @@ pub struct ViewArgs {
     /// print the camera (for scripts and tests).
     #[arg(long, value_name = "PNG")]
     pub screenshot_when_refined: Option<PathBuf>,
+    /// Fly the benchmark's path (orbit and zoom) this many seconds, print
+    /// the frame times as `flight <JSON>`, and close.
+    #[arg(long, value_name = "SECONDS")]
+    pub flight: Option<f64>,
 }
 
 #[derive(Debug, clap::Args)]
@@ -352,5 +356,6 @@ fn view_job(args: ViewArgs) -> anyhow::Result<commands::view::ViewJob> {
         token: args.token,
         ca_cert: args.ca_cert,
         screenshot_when_refined: args.screenshot_when_refined,
+        flight_seconds: args.flight,
     })
 }

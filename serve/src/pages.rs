@@ -170,7 +170,9 @@ const show = (text) => {{
   document.body.dataset.failed = "true";
 }};
 const webgl2 = !!document.createElement("canvas").getContext("webgl2");
-if (!navigator.gpu && !webgl2) {{
+// navigator.gpu can be there with no adapter behind it: ask for one.
+const webgpu = navigator.gpu ? !!(await navigator.gpu.requestAdapter().catch(() => null)) : false;
+if (!webgpu && !webgl2) {{
   show("This browser can draw with neither WebGPU nor WebGL2, and the viewer needs one of them. " +
        "Try a current Chrome, Edge, Firefox or Safari, with hardware acceleration on.");
 }} else {{

@@ -11,6 +11,7 @@
 //! pages, with why ([`Viewer::failed_pages`]), are no longer asked for:
 //! their parts of the tree are drawn from coarser pages.
 
+use std::collections::VecDeque;
 use std::path::Path;
 use std::time::Duration;
 
@@ -22,6 +23,7 @@ use farfield_protocol::file::FileHeader;
 use farfield_protocol::hierarchy::Hierarchy;
 use farfield_traverse::WantedPage;
 use lru::LruCache;
+use web_time::Instant;
 
 /// Reads the paged file at `path` whole, every page resident and verified
 /// (the `--file` mode).
@@ -37,6 +39,8 @@ pub struct Viewer {
     hierarchy: Option<Hierarchy>,
     recency: LruCache<u32, ()>,
     cache_bytes: usize,
+    /// Events taken from the session and not yet applied (see [`Viewer::pump_for`]).
+    pending: VecDeque<SessionEvent>,
     /// A file's viewer has no session; its counters stay zero.
     no_stats: NetStats,
 }
@@ -95,6 +99,7 @@ impl Viewer {
             hierarchy: None,
             recency: LruCache::unbounded(),
             cache_bytes,
+            pending: VecDeque::new(),
             no_stats: NetStats::default(),
         }
     }
@@ -151,18 +156,53 @@ impl Viewer {
     /// A session that ended (refused, never reached, a fatal server error)
     /// is returned as an error.
     pub fn pump(&mut self, wait: Duration) -> anyhow::Result<usize> {
+        self.receive(wait)?;
+        self.apply_pending(None)
+    }
+
+    /// Like [`Self::pump`] without waiting, but verifies and inserts
+    /// arrived pages only for about `budget` (at least one page), leaving
+    /// the rest for the next call: a burst of pages never stalls an
+    /// interactive frame (the viewer's; in a browser nothing else can run
+    /// meanwhile).
+    pub fn pump_for(&mut self, budget: Duration) -> anyhow::Result<usize> {
+        self.receive(Duration::ZERO)?;
+        self.apply_pending(Some(Instant::now() + budget))
+    }
+
+    /// Arrived pages not yet verified and inserted ([`Self::pump_for`]).
+    pub fn pending_pages(&self) -> usize {
+        self.pending.len()
+    }
+
+    /// Moves what the session has into the pending queue.
+    fn receive(&mut self, wait: Duration) -> anyhow::Result<()> {
+        if let Some(session) = self.session.as_mut() {
+            let wait = if self.pending.is_empty() {
+                wait
+            } else {
+                Duration::ZERO
+            };
+            self.pending.extend(session.pump(wait)?);
+        }
+        Ok(())
+    }
+
+    /// Applies pending events in order until `deadline` (all without one).
+    fn apply_pending(&mut self, deadline: Option<Instant>) -> anyhow::Result<usize> {
         let Self {
             session: Some(session),
             hierarchy,
             recency,
             cache_bytes,
+            pending,
             ..
         } = self
         else {
             return Ok(0);
         };
         let mut inserted = 0;
-        for event in session.pump(wait)? {
+        while let Some(event) = pending.pop_front() {
             match event {
                 SessionEvent::Header(header) => {
                     *hierarchy =
@@ -184,6 +224,9 @@ impl Viewer {
                         Err(e) => session.page_rejected(index, &e),
                     }
                 }
+            }
+            if deadline.is_some_and(|d| Instant::now() >= d) {
+                break;
             }
         }
         Ok(inserted)

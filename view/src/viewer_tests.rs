@@ -93,3 +93,26 @@ fn the_least_recently_used_pages_go_first_and_page_zero_stays() {
     assert!(!h.is_resident(1), "page 1 was the least recently used");
     assert!(h.is_resident(3), "the newest page stays");
 }
+
+#[test]
+fn a_zero_budget_inserts_one_page_a_call_and_keeps_the_rest_in_order() {
+    let file = scene();
+    assert!(file.pages.len() >= 4, "{} pages", file.pages.len());
+    let (mut v, wire) = viewer(&file, usize::MAX);
+    for p in 1..4 {
+        wire.push(frame(encode_page_frame(&file.pages[p])));
+    }
+    for (call, page) in (1..4).enumerate() {
+        assert_eq!(v.pump_for(Duration::ZERO).expect("pump"), 1, "call {call}");
+        assert!(v.hierarchy().unwrap().is_resident(page));
+        assert_eq!(v.pending_pages(), 3 - page);
+    }
+    assert_eq!(v.pump_for(Duration::ZERO).expect("pump"), 0);
+    // A generous budget takes everything at once.
+    let file2 = scene();
+    let (mut w, wire2) = viewer(&file2, usize::MAX);
+    for p in 1..4 {
+        wire2.push(frame(encode_page_frame(&file2.pages[p])));
+    }
+    assert_eq!(w.pump_for(Duration::from_secs(10)).expect("pump"), 3);
+}

@@ -19,12 +19,17 @@ use farfield_view::frame_loop::{LastCut, draw_frame};
 use farfield_view::viewer::Viewer;
 use web_time::Instant;
 
+use crate::flight::{Flight, FlightReport};
 use crate::input::read_input;
 use crate::panel::{self, Settings};
 use crate::pick::pick_splat;
 use crate::refine::{CutState, Refinement};
 use crate::rig::{CameraRig, Orbit};
 use crate::status::{Connection, Status};
+
+/// Time a frame may spend verifying and inserting arrived pages; the rest
+/// wait for the next frame, so a burst never stalls the picture.
+const PAGE_BUDGET: std::time::Duration = std::time::Duration::from_millis(4);
 
 /// What a front end tells the viewer at start.
 #[derive(Debug, Clone)]
@@ -35,6 +40,9 @@ pub struct AppOptions {
     pub settings: Settings,
     /// Show the panel at start (it can be toggled with Tab or its button).
     pub show_panel: bool,
+    /// Fly the benchmark's path ([`crate::flight`]) for this many seconds
+    /// once the scene is there, then report to [`Platform::flight_done`].
+    pub flight_seconds: Option<f64>,
 }
 
 impl Default for AppOptions {
@@ -43,6 +51,7 @@ impl Default for AppOptions {
             camera: None,
             settings: Settings::default(),
             show_panel: true,
+            flight_seconds: None,
         }
     }
 }
@@ -67,6 +76,8 @@ pub trait Platform {
     fn screenshot_itself(&mut self) -> bool {
         false
     }
+    /// A scripted flight ([`AppOptions::flight_seconds`]) ended.
+    fn flight_done(&mut self, _report: &FlightReport, _ctx: &egui::Context) {}
 }
 
 /// What a screenshot shows.
@@ -102,6 +113,8 @@ pub struct ViewerApp {
     /// Validation errors the device reported (a browser's, mostly).
     gpu_error: Arc<Mutex<Option<String>>>,
     screenshots: Arc<Mutex<Vec<Arc<egui::ColorImage>>>>,
+    /// The benchmark's flight, while it flies.
+    flight: Option<Flight>,
 }
 
 impl std::fmt::Debug for ViewerApp {
@@ -154,6 +167,7 @@ impl ViewerApp {
         )?;
         let s = &options.settings;
         let refine = Refinement::new(s.threshold, s.target_frame_ms, s.node_budget);
+        let flight = options.flight_seconds.map(Flight::new);
         let status = Status {
             adapter: renderer.adapter_description(),
             ..Status::default()
@@ -175,12 +189,14 @@ impl ViewerApp {
             rested_at: None,
             gpu_error,
             screenshots: Arc::default(),
+            flight,
         })
     }
 
-    /// Takes what arrived; a session that ended is shown, not fatal.
+    /// Takes what arrived, inserting pages for at most [`PAGE_BUDGET`] a
+    /// frame; a session that ended is shown, not fatal.
     fn pump(&mut self) {
-        if let Err(e) = self.viewer.pump(std::time::Duration::ZERO) {
+        if let Err(e) = self.viewer.pump_for(PAGE_BUDGET) {
             self.status.error = Some(format!("{e:#}"));
         }
     }
@@ -201,7 +217,16 @@ impl ViewerApp {
     }
 
     /// Draws the scene for `rect` (points) and handles its input.
-    fn scene(&mut self, ui: &mut egui::Ui, rect: Rect, frame: &eframe::Frame, dt: f64) {
+    /// `frame_s` is the time since the last frame as it was; `dt` the
+    /// same, capped, for motion (a long stall must not fling the camera).
+    fn scene(
+        &mut self,
+        ui: &mut egui::Ui,
+        rect: Rect,
+        frame: &eframe::Frame,
+        frame_s: f64,
+        dt: f64,
+    ) {
         let response = ui.allocate_rect(rect, Sense::click_and_drag());
         let ppp = ui.ctx().pixels_per_point();
         let (width, height) = (
@@ -225,6 +250,11 @@ impl ViewerApp {
             rig.reset();
         }
         rig.apply(&input, flying, rect.height() * ppp, dt);
+        let flying_script = self.flight.is_some();
+        if let Some(flight) = self.flight.as_mut() {
+            let next = flight.next(rig.shown(), dt);
+            rig.jump(next);
+        }
         if let Some(at) = pick
             && let Some(DrawList::Splats(splats)) = self.cut.draw_list()
         {
@@ -236,7 +266,7 @@ impl ViewerApp {
         }
         let was_moving = !rig.at_rest();
         rig.ease(dt);
-        let moving = was_moving || input != Default::default();
+        let moving = was_moving || input != Default::default() || flying_script;
         let camera = rig.shown().camera(width, height);
         let rest_spec = (!moving).then(|| rig.shown().spec());
 
@@ -261,7 +291,11 @@ impl ViewerApp {
             &mut self.rgba,
         ) {
             Ok(times) => {
-                let frame_ms = started.elapsed().as_secs_f64() * 1e3;
+                // The feedback needs the whole frame, GPU included. In a
+                // browser, and on a surface, the draw returns before the
+                // GPU is done, so the time between frames is the measure
+                // (the draw's own time when that is longer).
+                let frame_ms = (started.elapsed().as_secs_f64() * 1e3).max(frame_s * 1e3);
                 let missing = self
                     .cut
                     .wanted()
@@ -275,6 +309,13 @@ impl ViewerApp {
                     root: self.viewer.hierarchy().is_some_and(|h| h.is_resident(0)),
                 };
                 self.status.threshold = self.refine.threshold();
+                if let Some(flight) = self.flight.as_mut() {
+                    let resident = self
+                        .viewer
+                        .hierarchy()
+                        .map_or(0.0, |h| h.resident_bytes() as f64 / 1e6);
+                    flight.record(frame_s * 1e3, self.status.threshold, resident);
+                }
                 self.refine.after_frame(moving, frame_ms, cut);
                 self.status.draw_ms = times.traverse_ms + times.upload_ms + times.draw_ms;
                 self.status.nodes_drawn = cut.drawn;
@@ -371,7 +412,8 @@ impl ViewerApp {
 impl eframe::App for ViewerApp {
     fn ui(&mut self, ui: &mut egui::Ui, frame: &mut eframe::Frame) {
         let now = Instant::now();
-        let dt = now.duration_since(self.last_frame).as_secs_f64().min(0.25);
+        let frame_s = now.duration_since(self.last_frame).as_secs_f64();
+        let dt = frame_s.min(0.25);
         self.last_frame = now;
         self.pump();
         if ui.input(|i| i.key_pressed(egui::Key::Tab)) {
@@ -404,8 +446,8 @@ impl eframe::App for ViewerApp {
             self.show_panel |= shown;
         }
         let rect = ui.available_rect_before_wrap();
-        self.scene(ui, rect, frame, dt);
-        self.update_status(dt);
+        self.scene(ui, rect, frame, frame_s, dt);
+        self.update_status(frame_s);
         if let Some(message) = self.status.error.clone().or_else(|| self.waiting_message()) {
             egui::Area::new(egui::Id::unique("farfield message"))
                 .anchor(egui::Align2::CENTER_BOTTOM, Vec2::new(0.0, -16.0))
@@ -424,11 +466,20 @@ impl eframe::App for ViewerApp {
             self.platform.screenshot(w as u32, h as u32, rgba);
         }
         self.platform.status(&self.status);
+        if let Some(mut report) = self.flight.as_ref().and_then(Flight::finished) {
+            self.flight = None;
+            report.adapter = self.status.adapter.clone();
+            self.platform.flight_done(&report, ui.ctx());
+        }
         let shot = self.platform.wants_screenshot(&self.status);
         self.request_shot(ui.ctx(), shot);
         let capturing = self.take_scene_capture();
-        let busy =
-            !self.status.refined || capturing || self.rig.as_ref().is_some_and(|r| !r.at_rest());
+        // Keep drawing while anything can still change on screen.
+        let busy = !self.status.refined
+            || capturing
+            || self.flight.is_some()
+            || self.viewer.pending_pages() > 0
+            || self.rig.as_ref().is_some_and(|r| !r.at_rest());
         if busy {
             ui.ctx().request_repaint();
         } else {

@@ -13,9 +13,11 @@
 //! - [`input`]: egui's pointer, wheel, touch and keys as the rig's input;
 //! - [`refine`]: the frame budget while moving, refinement at rest, progress;
 //! - [`panel`]: stats and settings; [`status`]: what a frame reports;
-//! - [`link`]: the camera in a URL fragment; [`pick`]: what is under the cursor.
+//! - [`link`]: the camera in a URL fragment; [`pick`]: what is under the cursor;
+//! - [`flight`]: a scripted flight for benchmarks (frame times while orbiting).
 
 pub mod app;
+pub mod flight;
 pub mod input;
 pub mod link;
 pub mod panel;

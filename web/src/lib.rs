@@ -22,4 +22,4 @@ mod page;
 mod query;
 
 #[cfg(target_arch = "wasm32")]
-pub use page::{capture_canvas, start};
+pub use page::{capture_canvas, start, wasm_memory_bytes};

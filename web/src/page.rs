@@ -9,6 +9,7 @@ use farfield_net::SessionOptions;
 use farfield_net::browser::BrowserTransport;
 use farfield_view::camera_spec::CameraSpec;
 use farfield_view::viewer::Viewer;
+use farfield_viewer::flight::FlightReport;
 use farfield_viewer::link::{camera_fragment, parse_fragment};
 use farfield_viewer::status::Status;
 use farfield_viewer::{Platform, ViewerApp};
@@ -72,6 +73,7 @@ pub async fn start(canvas_id: String) -> Result<(), JsValue> {
     let page = WebPage {
         canvas: canvas.clone(),
         title: scene.clone(),
+        drew: false,
     };
     eframe::WebRunner::new()
         .start(
@@ -100,10 +102,25 @@ pub fn capture_canvas() {
     CAPTURE_ASKED.with(|c| c.set(true));
 }
 
+/// Bytes of the module's linear memory (resident pages and all): what
+/// the memory benchmark samples, with the page's JS heap.
+#[wasm_bindgen]
+pub fn wasm_memory_bytes() -> f64 {
+    wasm_bindgen::memory()
+        .dyn_into::<js_sys::WebAssembly::Memory>()
+        .map_or(0.0, |m| {
+            m.buffer()
+                .dyn_into::<js_sys::ArrayBuffer>()
+                .map_or(0.0, |b| f64::from(b.byte_length()))
+        })
+}
+
 /// The page's side of the viewer.
 struct WebPage {
     canvas: HtmlCanvasElement,
     title: String,
+    /// Whether the first image has been reported.
+    drew: bool,
 }
 
 impl WebPage {
@@ -137,6 +154,14 @@ impl Platform for WebPage {
 
     fn status(&mut self, status: &Status) {
         let data = self.canvas.dataset();
+        if !self.drew && status.nodes_drawn > 0 {
+            // Since the navigation began (HTML, wasm, GPU, stream, frame):
+            // what the time-to-first-image benchmark reads.
+            self.drew = true;
+            if let Some(now) = web_sys::window().and_then(|w| w.performance()) {
+                let _ = data.set("firstImageMs", &format!("{:.1}", now.now()));
+            }
+        }
         let _ = data.set("refined", if status.refined { "true" } else { "false" });
         let _ = data.set("progress", &format!("{:.4}", status.progress));
         let _ = data.set("connection", status.connection.label());
@@ -147,6 +172,12 @@ impl Platform for WebPage {
             self.after_this_frame(|canvas, url| {
                 let _ = canvas.dataset().set("capture", &url);
             });
+        }
+    }
+
+    fn flight_done(&mut self, report: &FlightReport, _ctx: &eframe::egui::Context) {
+        if let Ok(json) = serde_json::to_string(report) {
+            let _ = self.canvas.dataset().set("flight", &json);
         }
     }
 

@@ -1,5 +1,6 @@
 //! The viewer's options from the page's query string:
-//! `?panel=0&backend=webgl&kernel=round&threshold=2&budget=N&cache_mib=M&access_token=T`.
+//! `?panel=0&backend=webgl&kernel=round&threshold=2&budget=N&cache_mib=M&access_token=T`,
+//! and `flight=SECONDS` (the benchmark's scripted flight).
 
 use farfield_render::Kernel;
 use farfield_viewer::AppOptions;
@@ -45,6 +46,7 @@ pub fn parse(search: &str) -> Result<Query, String> {
     if let Some(b) = number("budget")? {
         options.settings.node_budget = b as u64;
     }
+    options.flight_seconds = number("flight")?;
     if let Some(m) = number("cache_mib")? {
         options.settings.cache_mib = (m as u64).max(1);
     }

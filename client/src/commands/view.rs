@@ -4,7 +4,9 @@
 //! `--screenshot-when-refined PNG` saves the window each time the resting
 //! view becomes refined and prints `refined camera=<camera> png=<PNG>`, so
 //! a script (the window test) can move the camera with real input and
-//! check what the window shows.
+//! check what the window shows. `--flight SECONDS` flies the benchmark's
+//! path ([`farfield_viewer::flight`]), prints `flight <JSON report>` and
+//! closes the window.
 
 use std::path::PathBuf;
 use std::time::Duration;
@@ -14,6 +16,7 @@ use farfield_net::SessionOptions;
 use farfield_view::camera_spec::CameraSpec;
 use farfield_view::render_job::Source;
 use farfield_view::viewer::Viewer;
+use farfield_viewer::flight::FlightReport;
 use farfield_viewer::link::camera_fragment;
 use farfield_viewer::panel::Settings;
 use farfield_viewer::status::Status;
@@ -30,6 +33,8 @@ pub struct ViewJob {
     pub token: Option<String>,
     pub ca_cert: Option<PathBuf>,
     pub screenshot_when_refined: Option<PathBuf>,
+    /// Fly the benchmark's path this many seconds, print its report, close.
+    pub flight_seconds: Option<f64>,
 }
 
 pub fn run(job: ViewJob) -> anyhow::Result<()> {
@@ -68,6 +73,7 @@ pub fn run(job: ViewJob) -> anyhow::Result<()> {
         camera: job.camera,
         settings: job.settings,
         show_panel: job.show_panel,
+        flight_seconds: job.flight_seconds,
     };
     let window = Window {
         save_to: job.screenshot_when_refined,
@@ -112,6 +118,14 @@ impl Platform for Window {
             Ok(()) => println!("saved png={}", path.display()),
             Err(e) => eprintln!("farfield: could not save the screenshot: {e}"),
         }
+    }
+
+    fn flight_done(&mut self, report: &FlightReport, ctx: &eframe::egui::Context) {
+        println!(
+            "flight {}",
+            serde_json::to_string(report).unwrap_or_default()
+        );
+        ctx.send_viewport_cmd(eframe::egui::ViewportCommand::Close);
     }
 
     fn status(&mut self, status: &Status) {

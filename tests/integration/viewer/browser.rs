@@ -207,3 +207,30 @@ fn an_unknown_scene_gets_a_page_that_links_back_to_the_list() {
     assert!(body.contains("<a href=\"/\">"), "{body}");
     rt.block_on(server.shutdown()).unwrap();
 }
+
+#[test]
+fn a_browser_without_webgpu_or_webgl2_is_told_so() {
+    let _one = ONE_BROWSER.lock().unwrap_or_else(|e| e.into_inner());
+    let Some((dir, _, web)) = setup("viewer-no-gpu") else {
+        return;
+    };
+    let rt = runtime();
+    let server = rt.block_on(serve(&dir, &web, "127.0.0.1:0".parse().unwrap()));
+    let browser = Browser::with_graphics(SIZE.0, SIZE.1, false);
+    browser.goto(&format!("http://{}/view/bunny", server.local_addr()));
+    browser.wait_for(
+        "the page says why it cannot draw",
+        "return document.body.dataset.failed === 'true'",
+        REPORT,
+        WAIT,
+    );
+    let text = browser.eval("return document.getElementById('message').innerText");
+    let text = text.as_str().unwrap_or_default();
+    assert!(text.contains("neither WebGPU nor WebGL2"), "{text}");
+    assert!(
+        text.contains("the scenes this server has"),
+        "a link back: {text}"
+    );
+    drop(browser);
+    rt.block_on(server.shutdown()).unwrap();
+}

@@ -37,8 +37,15 @@ fn free_port() -> u16 {
 
 impl Browser {
     /// Starts chromedriver and a headless chromium whose viewport is
-    /// `width` x `height` CSS pixels at one device pixel each.
+    /// `width` x `height` CSS pixels at one device pixel each, with a
+    /// WebGPU adapter and WebGL2 (both on SwiftShader).
     pub(crate) fn start(width: u32, height: u32) -> Self {
+        Self::with_graphics(width, height, true)
+    }
+
+    /// [`Self::start`], or, with `graphics` false, a browser that has
+    /// neither WebGPU nor WebGL.
+    pub(crate) fn with_graphics(width: u32, height: u32, graphics: bool) -> Self {
         let port = free_port();
         let (quiet, on) = farfield_render::DEVICE_SELECT_OFF;
         let driver = Command::new("chromedriver")
@@ -63,16 +70,20 @@ impl Browser {
             std::thread::sleep(Duration::from_millis(100));
         }
         let profile = std::env::temp_dir().join(format!("farfield-chromium-{port}"));
+        let gpu = [
+            "--enable-unsafe-webgpu",
+            "--enable-unsafe-swiftshader",
+            // Without these three a WebGPU canvas is never composited here:
+            // the page draws, but screenshots and the canvas's pixels stay blank.
+            "--use-angle=swiftshader",
+            "--enable-features=Vulkan",
+            "--use-vulkan=swiftshader",
+        ];
+        let none = ["--disable-3d-apis", "--disable-features=WebGPU"];
+        let graphics_args = if graphics { &gpu[..] } else { &none[..] };
         let args = [
             "--headless=new".to_owned(),
             "--no-sandbox".to_owned(),
-            "--enable-unsafe-webgpu".to_owned(),
-            "--enable-unsafe-swiftshader".to_owned(),
-            // Without these three a WebGPU canvas is never composited here:
-            // the page draws, but screenshots and the canvas's pixels stay blank.
-            "--use-angle=swiftshader".to_owned(),
-            "--enable-features=Vulkan".to_owned(),
-            "--use-vulkan=swiftshader".to_owned(),
             "--disable-quic".to_owned(),
             "--no-first-run".to_owned(),
             "--disable-background-networking".to_owned(),
@@ -81,6 +92,10 @@ impl Browser {
             "--force-device-scale-factor=1".to_owned(),
             format!("--user-data-dir={}", profile.display()),
         ];
+        let args: Vec<String> = args
+            .into_iter()
+            .chain(graphics_args.iter().map(|a| (*a).to_owned()))
+            .collect();
         let caps = json!({
             "capabilities": { "alwaysMatch": {
                 "browserName": "chrome",
