@@ -234,3 +234,100 @@ fn a_browser_without_webgpu_or_webgl2_is_told_so() {
     drop(browser);
     rt.block_on(server.shutdown()).unwrap();
 }
+
+/// Waits for the view to be refined at a camera other than `previous`'s
+/// (the page's address); returns the new address.
+fn refined_away_from(browser: &Browser, previous: &str, what: &str) -> String {
+    let moved = format!(
+        "return document.getElementById('farfield').dataset.refined === 'true' \
+         && location.hash !== {previous:?}"
+    );
+    browser.wait_for(what, &moved, REPORT, WAIT);
+    browser
+        .eval("return location.hash")
+        .as_str()
+        .unwrap_or_default()
+        .to_owned()
+}
+
+/// Eye and target of an address's camera.
+fn eye_target(fragment: &str) -> (glam::DVec3, glam::DVec3) {
+    match camera_of_fragment(fragment) {
+        farfield_view::camera_spec::CameraSpec::Eye { eye, target, .. } => (eye, target),
+        other => panic!("not an eye camera: {other:?}"),
+    }
+}
+
+#[test]
+fn one_finger_orbits_two_fingers_pinch_to_zoom_and_w_flies_forward() {
+    let _one = ONE_BROWSER.lock().unwrap_or_else(|e| e.into_inner());
+    let Some((dir, _, web)) = setup("viewer-touch") else {
+        return;
+    };
+    let rt = runtime();
+    let server = rt.block_on(serve(&dir, &web, "127.0.0.1:0".parse().unwrap()));
+    let browser = Browser::start(SIZE.0, SIZE.1);
+    browser.goto(&format!(
+        "http://{}/view/bunny?panel=0#{START}",
+        server.local_addr()
+    ));
+    browser.wait_for("refined", REFINED, REPORT, WAIT);
+    let start = browser
+        .eval("return location.hash")
+        .as_str()
+        .unwrap_or_default()
+        .to_owned();
+    let (eye0, target0) = eye_target(&start);
+
+    // One finger across the screen: the eye circles the target.
+    let path: Vec<(i64, i64)> = (0..5).map(|i| (160 + 20 * i, 120 + 5 * i)).collect();
+    browser.touch(&[&path]);
+    let orbited = refined_away_from(&browser, &start, "refined after a one-finger drag");
+    let (eye1, target1) = eye_target(&orbited);
+    assert!(
+        (target1 - target0).length() < 1e-9,
+        "an orbit keeps the target"
+    );
+    let (d0, d1) = ((eye0 - target0).length(), (eye1 - target1).length());
+    assert!(
+        (d1 - d0).abs() < 1e-6 * d0,
+        "and the distance: {d0} -> {d1}"
+    );
+    assert!(
+        (eye1 - eye0).length() > 0.05 * d0,
+        "the eye moved: {eye0} -> {eye1}"
+    );
+
+    // Two fingers apart around the centre: closer, same direction.
+    let left: Vec<(i64, i64)> = (0..5).map(|i| (150 - 10 * i, 120)).collect();
+    let right: Vec<(i64, i64)> = (0..5).map(|i| (170 + 10 * i, 120)).collect();
+    browser.touch(&[&left, &right]);
+    let pinched = refined_away_from(&browser, &orbited, "refined after a pinch");
+    let (eye2, target2) = eye_target(&pinched);
+    let d2 = (eye2 - target2).length();
+    assert!(
+        d2 < 0.8 * d1,
+        "spreading two fingers zooms in: {d1} -> {d2}"
+    );
+    let before = (eye1 - target1).normalize();
+    let after = (eye2 - target2).normalize();
+    assert!(before.dot(after) > 0.99, "a pinch does not turn the view");
+
+    // W (with the page focused by a click in a corner): forward along the view.
+    browser.click(5, 5);
+    browser.hold_key("w", 1000);
+    let flown = refined_away_from(&browser, &pinched, "refined after flying forward");
+    let (eye3, target3) = eye_target(&flown);
+    let step = eye3 - eye2;
+    assert!(step.length() > 0.0);
+    assert!(
+        step.normalize().dot(-after) > 0.99,
+        "W moves the eye along the view: {eye2} -> {eye3}"
+    );
+    assert!(
+        (target3 - eye3).length() - d2 < 1e-9 * d2,
+        "the view's depth stays"
+    );
+    drop(browser);
+    rt.block_on(server.shutdown()).unwrap();
+}

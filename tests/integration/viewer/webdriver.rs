@@ -191,6 +191,57 @@ impl Browser {
         );
     }
 
+    /// A left click at (`x`, `y`) CSS pixels (which also gives the page focus).
+    pub(crate) fn click(&self, x: i64, y: i64) {
+        let actions = json!([
+            {"type": "pointerMove", "duration": 0, "x": x, "y": y, "origin": "viewport"},
+            {"type": "pointerDown", "button": 0},
+            {"type": "pointerUp", "button": 0},
+        ]);
+        self.post(
+            "actions",
+            json!({ "actions": [{"type": "pointer", "id": "mouse",
+                    "parameters": {"pointerType": "mouse"}, "actions": actions}]}),
+        );
+    }
+
+    /// Holds the key `key` (a character) down for `ms` milliseconds.
+    pub(crate) fn hold_key(&self, key: &str, ms: u64) {
+        let actions = json!([
+            {"type": "keyDown", "value": key},
+            {"type": "pause", "duration": ms},
+            {"type": "keyUp", "value": key},
+        ]);
+        self.post(
+            "actions",
+            json!({ "actions": [{"type": "key", "id": "keyboard", "actions": actions}]}),
+        );
+    }
+
+    /// Fingers on a touch screen, each a path of CSS pixel points, moving
+    /// together (one step each 40 ms), lifted at the end.
+    pub(crate) fn touch(&self, fingers: &[&[(i64, i64)]]) {
+        let sources: Vec<Value> = fingers
+            .iter()
+            .enumerate()
+            .map(|(i, path)| {
+                let mut actions = vec![
+                    json!({"type": "pointerMove", "duration": 0, "origin": "viewport",
+                           "x": path[0].0, "y": path[0].1}),
+                    json!({"type": "pointerDown", "button": 0}),
+                ];
+                for &(x, y) in &path[1..] {
+                    actions.push(json!({"type": "pointerMove", "duration": 40,
+                                        "origin": "viewport", "x": x, "y": y}));
+                }
+                actions.push(json!({"type": "pointerUp", "button": 0}));
+                json!({"type": "pointer", "id": format!("finger{i}"),
+                       "parameters": {"pointerType": "touch"}, "actions": actions})
+            })
+            .collect();
+        self.post("actions", json!({ "actions": sources }));
+    }
+
     /// The viewport as the user sees it: (width, height, RGBA).
     pub(crate) fn screenshot(&self) -> (u32, u32, Vec<u8>) {
         let mut r = self
