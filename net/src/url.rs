@@ -6,14 +6,7 @@ pub fn with_token(url: &str, token: Option<&str>) -> String {
     let Some(token) = token else {
         return url.to_owned();
     };
-    let mut encoded = String::with_capacity(token.len());
-    for b in token.bytes() {
-        if b.is_ascii_alphanumeric() || b"-._~".contains(&b) {
-            encoded.push(char::from(b));
-        } else {
-            encoded.push_str(&format!("%{b:02X}"));
-        }
-    }
+    let encoded = farfield_protocol::percent::percent_encode(token);
     let sep = if url.contains('?') { '&' } else { '?' };
     format!("{url}{sep}access_token={encoded}")
 }

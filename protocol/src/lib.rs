@@ -22,7 +22,7 @@
 //!   into a fully resident hierarchy.
 //! - [`messages`]: the websocket session's [`messages::ClientMessage`] and
 //!   [`messages::ServerMessage`]; [`codec`]: their bytes (bincode 2, in one
-//!   module so it can be swapped).
+//!   module so it can be swapped); [`percent`]: names and tokens in URLs.
 
 pub mod camera;
 pub mod codec;
@@ -33,6 +33,7 @@ pub mod messages;
 pub mod octahedral;
 pub mod page;
 pub mod paged_file;
+pub mod percent;
 pub mod shading;
 pub mod sphere_codec;
 

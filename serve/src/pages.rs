@@ -14,6 +14,7 @@ use axum::Extension;
 use axum::extract::{Path, Query, State};
 use axum::http::StatusCode;
 use axum::response::{Html, IntoResponse, Response};
+use farfield_protocol::percent::percent_encode;
 
 use super::AppState;
 use super::access::Grant;
@@ -30,19 +31,6 @@ fn escape(text: &str) -> String {
             '"' => out.push_str("&quot;"),
             '\'' => out.push_str("&#39;"),
             c => out.push(c),
-        }
-    }
-    out
-}
-
-/// `text` as one URL path segment or query value.
-fn encode(text: &str) -> String {
-    let mut out = String::with_capacity(text.len());
-    for b in text.bytes() {
-        if b.is_ascii_alphanumeric() || b"-._~".contains(&b) {
-            out.push(char::from(b));
-        } else {
-            out.push_str(&format!("%{b:02X}"));
         }
     }
     out
@@ -66,7 +54,7 @@ fn page(title: &str, body: &str) -> String {
 fn token_query(query: &HashMap<String, String>) -> String {
     query
         .get("access_token")
-        .map(|t| format!("?access_token={}", encode(t)))
+        .map(|t| format!("?access_token={}", percent_encode(t)))
         .unwrap_or_default()
 }
 
@@ -83,7 +71,7 @@ pub(crate) async fn index(
         rows.push_str(&format!(
             "<tr><td><a href=\"/view/{}{carry}\">{}</a></td><td>{}</td>\
              <td class=\"n\">{}</td><td class=\"n\">{:.1} MB</td></tr>",
-            encode(&scene.name),
+            percent_encode(&scene.name),
             escape(&scene.name),
             h.kind.name(),
             h.nodes,
@@ -196,11 +184,10 @@ mod tests {
     use super::*;
 
     #[test]
-    fn names_are_escaped_and_encoded() {
+    fn names_are_escaped() {
         assert_eq!(
             escape("<a href='x'>&\"</a>"),
             "&lt;a href=&#39;x&#39;&gt;&amp;&quot;&lt;/a&gt;"
         );
-        assert_eq!(encode("a b/é?"), "a%20b%2F%C3%A9%3F");
     }
 }

@@ -31,6 +31,7 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
+use anyhow::Context;
 use farfield_builder::import::{Params, load_input};
 use farfield_builder::{BuildOptions, build_spheres};
 use serde_json::Value;
@@ -40,19 +41,17 @@ use webdriver::Browser;
 const SIZE: (u32, u32) = (800, 600);
 const CHILD_ENV: &str = "FARFIELD_BENCH_VIEW_ARGS";
 
-fn main() {
+fn main() -> anyhow::Result<()> {
     // The window's half: `farfield view` in-process, in a child.
     if let Ok(args) = std::env::var(CHILD_ENV) {
         use clap::Parser;
         let cli = farfield_client::cli::Cli::try_parse_from(
             std::iter::once("farfield").chain(args.split('\t')),
-        )
-        .expect("arguments");
-        farfield_client::cli::run(cli).expect("farfield view");
-        return;
+        )?;
+        return farfield_client::cli::run(cli);
     }
     if std::env::args().any(|a| a == "--list") {
-        return;
+        return Ok(());
     }
     let number = |name: &str, default: f64| {
         std::env::var(name)
@@ -64,73 +63,80 @@ fn main() {
     // Small enough that the flight's pages do not fit: the LRU works.
     let cache_mib = number("CACHE_MIB", 1.0) as u64;
     let only_memory = std::env::var_os("ONLY_MEMORY").is_some();
-    let data = farfield_tests::shared_data().expect("the viewer benchmarks need ../shared/data");
+    let data =
+        farfield_tests::shared_data().context("the viewer benchmarks need ../shared/data")?;
     let web = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../web/dist");
-    farfield_serve::web_assets::ready(Some(&web)).expect("the built viewer: run web/build");
+    farfield_serve::web_assets::ready(Some(&web))
+        .map_err(|why| anyhow::anyhow!("the built viewer ({why}): run web/build"))?;
     let dir = farfield_tests::scratch("bench-viewer");
     write_scene(
         &dir,
         "bunny",
-        data.join("stanford-bunny.obj").to_str().unwrap(),
+        &data.join("stanford-bunny.obj").to_string_lossy(),
         &[],
-    );
+    )?;
     let island = write_scene(
         &dir,
         "island",
         "gen:island",
         &[("size", 512), ("trees", 64)],
-    );
-    let island_mb = std::fs::metadata(&island).unwrap().len() as f64 / 1e6;
+    )?;
+    let island_mb = std::fs::metadata(&island)?.len() as f64 / 1e6;
 
-    sizes(&web);
+    sizes(&web)?;
     let rt = tokio::runtime::Builder::new_multi_thread()
         .worker_threads(2)
         .enable_all()
-        .build()
-        .unwrap();
+        .build()?;
     let server = rt
         .block_on(farfield_serve::start(farfield_serve::ServerConfig {
             web: Some(web.clone()),
-            ..farfield_serve::ServerConfig::new(&dir, "127.0.0.1:0".parse().unwrap())
+            ..farfield_serve::ServerConfig::new(&dir, ([127, 0, 0, 1], 0).into())
         }))
-        .expect("server");
+        .context("starting the server")?;
     let addr = server.local_addr();
 
     if !only_memory {
-        first_image(addr);
+        first_image(addr)?;
         for backend in ["webgpu", "webgl"] {
-            let report = browser_flight(addr, "bunny", backend, 20.0, None);
+            let report = browser_flight(addr, "bunny", backend, 20.0, None)?;
             println!("orbit, tab ({backend}, SwiftShader), bunny, 20 s: {report}");
         }
-        let window = window_flight(addr, "bunny", 20.0, None);
+        let window = window_flight(addr, "bunny", 20.0, None)?;
         println!("orbit, window (native wgpu, CPU driver), bunny, 20 s: {window}");
     }
     println!(
         "memory over a {flight_s:.0} s flight, island ({island_mb:.1} MB file), page budget {cache_mib} MiB:"
     );
-    let report = browser_flight(addr, "island", "webgpu", flight_s, Some(cache_mib));
+    let report = browser_flight(addr, "island", "webgpu", flight_s, Some(cache_mib))?;
     println!("  tab flight report: {report}");
-    let report = window_flight(addr, "island", flight_s, Some(cache_mib));
+    let report = window_flight(addr, "island", flight_s, Some(cache_mib))?;
     println!("  window flight report: {report}");
-    rt.block_on(server.shutdown()).unwrap();
+    rt.block_on(server.shutdown())?;
+    Ok(())
 }
 
-fn write_scene(dir: &Path, name: &str, input: &str, params: &[(&str, i64)]) -> PathBuf {
+fn write_scene(
+    dir: &Path,
+    name: &str,
+    input: &str,
+    params: &[(&str, i64)],
+) -> anyhow::Result<PathBuf> {
     let mut p = Params::default();
     for (k, v) in params {
         p.set(k, *v);
     }
-    let scene = load_input(input, &p).expect("input");
-    let (file, _) = build_spheres(scene, &BuildOptions::default()).expect("build");
+    let scene = load_input(input, &p).with_context(|| format!("importing {input}"))?;
+    let (file, _) = build_spheres(scene, &BuildOptions::default())?;
     let path = dir.join(format!("{name}.ff"));
-    farfield_store::write_atomic(&path, &file).expect("write");
-    path
+    farfield_store::write_atomic(&path, &file)?;
+    Ok(path)
 }
 
-fn sizes(web: &Path) {
+fn sizes(web: &Path) -> anyhow::Result<()> {
     for file in farfield_serve::web_assets::FILES {
         let path = web.join(file);
-        let raw = std::fs::metadata(&path).unwrap().len();
+        let raw = std::fs::metadata(&path)?.len();
         let gz = Command::new("gzip")
             .args(["-9", "-c"])
             .arg(&path)
@@ -143,6 +149,7 @@ fn sizes(web: &Path) {
             gz as f64 / 1e6
         );
     }
+    Ok(())
 }
 
 fn median(mut v: Vec<f64>) -> f64 {
@@ -152,7 +159,7 @@ fn median(mut v: Vec<f64>) -> f64 {
 
 const FIRST: &str = "return document.getElementById('farfield').dataset.firstImageMs || null";
 
-fn first_image(addr: SocketAddr) {
+fn first_image(addr: SocketAddr) -> anyhow::Result<()> {
     let browser = Browser::start(SIZE.0, SIZE.1);
     let url = format!("http://{addr}/view/bunny?panel=0");
     let mut loads = Vec::new();
@@ -165,8 +172,9 @@ fn first_image(addr: SocketAddr) {
             "return null",
             Duration::from_secs(60),
         );
-        let ms: f64 = browser.eval(FIRST).as_str().unwrap().parse().unwrap();
-        loads.push(ms);
+        let ms = browser.eval(FIRST);
+        let ms = ms.as_str().and_then(|v| v.parse::<f64>().ok());
+        loads.push(ms.context("the page's time to first image")?);
     }
     println!(
         "first image (loopback, wasm included): first load {:.0} ms, reloads median {:.0} ms (of {:?})",
@@ -174,6 +182,7 @@ fn first_image(addr: SocketAddr) {
         median(loads[1..].to_vec()),
         loads.iter().map(|x| x.round()).collect::<Vec<_>>()
     );
+    Ok(())
 }
 
 /// Sum of the RSS of processes whose command line contains `needle`, MiB.
@@ -204,7 +213,7 @@ fn browser_flight(
     backend: &str,
     seconds: f64,
     cache_mib: Option<u64>,
-) -> String {
+) -> anyhow::Result<String> {
     let browser = Browser::start(SIZE.0, SIZE.1);
     let cache = cache_mib
         .map(|m| format!("&cache_mib={m}"))
@@ -253,10 +262,9 @@ fn browser_flight(
                 status["resident_mb"].as_f64().unwrap_or(0.0),
             ));
         }
-        assert!(
-            started.elapsed().as_secs_f64() < seconds * 4.0 + 60.0,
-            "the flight never ended"
-        );
+        if started.elapsed().as_secs_f64() > seconds * 4.0 + 60.0 {
+            anyhow::bail!("the tab's flight never ended");
+        }
         std::thread::sleep(Duration::from_secs(if cache_mib.is_some() {
             10
         } else {
@@ -268,13 +276,16 @@ fn browser_flight(
             "  tab t={t:>5.0} s: wasm memory {wasm:.1} MiB, JS heap {heap:.1} MiB, renderer RSS {renderers:.0} MiB, resident pages {resident:.1} MB"
         );
     }
-    report
+    Ok(report)
 }
 
-fn window_flight(addr: SocketAddr, scene: &str, seconds: f64, cache_mib: Option<u64>) -> String {
-    let Some(x) = xvfb::start_xvfb() else {
-        panic!("the window benchmark needs Xvfb");
-    };
+fn window_flight(
+    addr: SocketAddr,
+    scene: &str,
+    seconds: f64,
+    cache_mib: Option<u64>,
+) -> anyhow::Result<String> {
+    let x = xvfb::start_xvfb().context("the window benchmark needs Xvfb")?;
     let mut args = vec![
         "view".to_owned(),
         "--server".into(),
@@ -290,7 +301,7 @@ fn window_flight(addr: SocketAddr, scene: &str, seconds: f64, cache_mib: Option<
     if let Some(m) = cache_mib {
         args.extend(["--cache-mib".into(), m.to_string()]);
     }
-    let mut child = Command::new(std::env::current_exe().unwrap())
+    let mut child = Command::new(std::env::current_exe()?)
         .env(CHILD_ENV, args.join("\t"))
         .env("DISPLAY", x.display())
         .env_remove("WAYLAND_DISPLAY")
@@ -301,10 +312,10 @@ fn window_flight(addr: SocketAddr, scene: &str, seconds: f64, cache_mib: Option<
         .stdout(Stdio::piped())
         .stderr(Stdio::null())
         .spawn()
-        .expect("the viewer");
+        .context("starting the viewer")?;
     let proc_dir = PathBuf::from(format!("/proc/{}", child.id()));
     let (tx, rx) = std::sync::mpsc::channel();
-    let stdout = child.stdout.take().unwrap();
+    let stdout = child.stdout.take().context("the viewer's output")?;
     std::thread::spawn(move || {
         for line in BufReader::new(stdout).lines().map_while(Result::ok) {
             if let Some(r) = line.strip_prefix("flight ") {
@@ -328,11 +339,11 @@ fn window_flight(addr: SocketAddr, scene: &str, seconds: f64, cache_mib: Option<
                 rss_kib(&proc_dir) as f64 / 1024.0
             );
         }
-        assert!(
-            started.elapsed().as_secs_f64() < seconds * 4.0 + 60.0,
-            "the window's flight never ended"
-        );
+        if started.elapsed().as_secs_f64() > seconds * 4.0 + 60.0 {
+            let _ = child.kill();
+            anyhow::bail!("the window's flight never ended");
+        }
     };
     let _ = child.wait();
-    report
+    Ok(report)
 }

@@ -86,6 +86,33 @@ impl LastCut {
     pub fn visited(&self) -> u64 {
         self.counts().visited
     }
+
+    /// Pages the last traversal wanted that may still come (not given up).
+    pub fn missing(&self, viewer: &Viewer) -> usize {
+        self.wanted()
+            .iter()
+            .filter(|w| !viewer.gave_up(w.page))
+            .count()
+    }
+}
+
+/// Where progressive refinement starts: [`COARSE_FACTOR`] times the final
+/// threshold, at least 1 (and never finer than the final one).
+pub fn coarse_threshold(final_threshold: f64) -> f64 {
+    (final_threshold * COARSE_FACTOR)
+        .max(1.0)
+        .max(final_threshold)
+}
+
+/// The next step of refinement at rest: half of `threshold`, not below
+/// `finest`. Halving never reaches 0 (`--eps 0`): it goes there from 1/32.
+pub fn finer_threshold(threshold: f64, finest: f64) -> f64 {
+    let next = threshold * 0.5;
+    if next < 1.0 / 32.0 {
+        finest
+    } else {
+        next.max(finest)
+    }
 }
 
 /// One frame: traverse what is resident, mark what was used, ask for what
@@ -153,9 +180,7 @@ impl Settle {
         let final_threshold = final_threshold.max(0.0);
         Self {
             final_threshold,
-            threshold: (final_threshold * COARSE_FACTOR)
-                .max(1.0)
-                .max(final_threshold),
+            threshold: coarse_threshold(final_threshold),
             until,
             started,
             timeout,
@@ -219,12 +244,7 @@ impl Settle {
             if self.keep_frames {
                 self.frames.push(self.rgba.clone());
             }
-            let missing = self
-                .cut
-                .wanted()
-                .iter()
-                .filter(|w| !viewer.gave_up(w.page))
-                .count();
+            let missing = self.cut.missing(viewer);
             // Without the root nothing is drawn, however few pages are
             // missing; and once it is given up nothing more can come.
             let root = viewer.hierarchy().is_some_and(|h| h.is_resident(0));
@@ -245,13 +265,7 @@ impl Settle {
                 return Ok(());
             }
             if self.threshold > self.final_threshold {
-                // Halving never reaches 0 (`--eps 0`): go there from 1/32.
-                let next = self.threshold * 0.5;
-                self.threshold = if next < 1.0 / 32.0 {
-                    self.final_threshold
-                } else {
-                    next.max(self.final_threshold)
-                };
+                self.threshold = finer_threshold(self.threshold, self.final_threshold);
             } else if !refined {
                 // Nothing to gain from redrawing before more pages arrive.
                 viewer.pump(Duration::from_millis(200))?;

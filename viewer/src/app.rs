@@ -31,6 +31,12 @@ use crate::status::{Connection, Status};
 /// wait for the next frame, so a burst never stalls the picture.
 const PAGE_BUDGET: std::time::Duration = std::time::Duration::from_millis(4);
 
+/// How long a viewer's session keeps trying to reach a server it has never
+/// reached (its `first_connect_grace`): as long as someone looks, since
+/// the viewer says it is connecting; a server that went away after is
+/// retried for as long anyway.
+pub const WAIT_FOR_SERVER: std::time::Duration = std::time::Duration::from_secs(365 * 24 * 3600);
+
 /// What a front end tells the viewer at start.
 #[derive(Debug, Clone)]
 pub struct AppOptions {
@@ -296,12 +302,7 @@ impl ViewerApp {
                 // GPU is done, so the time between frames is the measure
                 // (the draw's own time when that is longer).
                 let frame_ms = (started.elapsed().as_secs_f64() * 1e3).max(frame_s * 1e3);
-                let missing = self
-                    .cut
-                    .wanted()
-                    .iter()
-                    .filter(|w| !self.viewer.gave_up(w.page))
-                    .count();
+                let missing = self.cut.missing(&self.viewer);
                 let cut = CutState {
                     drawn: self.cut.counts().drawn,
                     used_pages: self.cut.touched_pages().len(),
@@ -343,19 +344,22 @@ impl ViewerApp {
         let Some((view, generation)) = renderer.shown_texture() else {
             return;
         };
-        let mut egui_renderer = state.renderer.write();
+        // egui's renderer is locked only when the texture is new (a resize).
         let id = match self.texture {
             Some((id, g)) if g == generation => id,
             Some((id, _)) => {
-                egui_renderer.update_egui_texture_from_wgpu_texture(
-                    &state.device,
-                    view,
-                    wgpu::FilterMode::Nearest,
-                    id,
-                );
+                state
+                    .renderer
+                    .write()
+                    .update_egui_texture_from_wgpu_texture(
+                        &state.device,
+                        view,
+                        wgpu::FilterMode::Nearest,
+                        id,
+                    );
                 id
             }
-            None => egui_renderer.register_native_texture(
+            None => state.renderer.write().register_native_texture(
                 &state.device,
                 view,
                 wgpu::FilterMode::Nearest,

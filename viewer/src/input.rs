@@ -6,7 +6,7 @@
 
 use egui::{Key, PointerButton, Rect, Response};
 
-use crate::rig::Input;
+use crate::rig::{Input, ZOOM_PER_STEP};
 
 /// Reads this frame's input over the scene (`response` covers `rect`).
 /// `flying` is switched by F.
@@ -33,7 +33,8 @@ pub fn read_input(ui: &egui::Ui, response: &Response, rect: Rect, flying: &mut b
         let pan = t.translation_delta * ppp;
         input.pan = [pan.x, pan.y];
         if t.zoom_delta != 1.0 && t.zoom_delta > 0.0 {
-            input.zoom = t.zoom_delta.ln() / 0.15;
+            // A pinch that doubles the span halves the distance.
+            input.zoom = (f64::from(t.zoom_delta).ln() / ZOOM_PER_STEP) as f32;
             let at = (t.center_pos - centre) * ppp;
             input.zoom_at = [at.x, at.y];
         }

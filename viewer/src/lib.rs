@@ -26,4 +26,4 @@ pub mod refine;
 pub mod rig;
 pub mod status;
 
-pub use app::{AppOptions, Platform, Shot, ViewerApp};
+pub use app::{AppOptions, Platform, Shot, ViewerApp, WAIT_FOR_SERVER};

@@ -4,8 +4,9 @@
 //! Moving, the projected-size threshold follows the frame time (QSplat
 //! 2.1, the same feedback as a flythrough's,
 //! [`farfield_view::flythrough::follow_frame_time`]). At rest it halves
-//! each frame down to the final threshold, as `farfield render` does
-//! ([`farfield_view::frame_loop::Settle`]), then waits for pages. A node
+//! each frame down to the final threshold with the steps `farfield render`
+//! takes ([`farfield_view::frame_loop::Settle`], `finer_threshold`), then
+//! waits for pages. A node
 //! budget (Potree's point budget) puts a floor under the threshold for as
 //! long as the camera rests: a cut that would draw more nodes than the
 //! budget is drawn coarser instead.
@@ -18,6 +19,7 @@
 //! exactly when the view is refined, never before.
 
 use farfield_view::flythrough::follow_frame_time;
+use farfield_view::frame_loop::{coarse_threshold, finer_threshold};
 
 /// Largest share shown before the view is refined.
 const ALMOST: f64 = 0.999;
@@ -58,7 +60,7 @@ impl Refinement {
             final_threshold,
             target_frame_ms,
             node_budget,
-            threshold: coarse(final_threshold),
+            threshold: coarse_threshold(final_threshold),
             floor: 0.0,
             progress: 0.0,
             refined: false,
@@ -88,7 +90,7 @@ impl Refinement {
 
     /// Starts refining again from coarse (a setting changed).
     pub fn restart(&mut self) {
-        self.threshold = coarse(self.final_threshold);
+        self.threshold = coarse_threshold(self.final_threshold);
         self.floor = 0.0;
         self.progress = 0.0;
         self.refined = false;
@@ -134,20 +136,9 @@ impl Refinement {
             self.progress = self.progress.max(share.min(ALMOST));
         }
         if !at_finest {
-            // Halving never reaches 0 (eps 0): go there from 1/32.
-            let next = self.threshold * 0.5;
-            self.threshold = if next < 1.0 / 32.0 {
-                self.finest()
-            } else {
-                next.max(self.finest())
-            };
+            self.threshold = finer_threshold(self.threshold, self.finest());
         }
     }
-}
-
-/// The starting threshold of a refinement: 16 times the final one, at least 1.
-fn coarse(final_threshold: f64) -> f64 {
-    (final_threshold * 16.0).max(1.0).max(final_threshold)
 }
 
 /// How much coarser a threshold must be to draw `budget` nodes instead of

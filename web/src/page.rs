@@ -1,7 +1,6 @@
 //! Starting the viewer on the page, and what the page learns from it.
 
 use std::cell::Cell;
-use std::time::Duration;
 
 use base64::Engine;
 
@@ -49,8 +48,7 @@ pub async fn start(canvas_id: String) -> Result<(), JsValue> {
 
     let session = SessionOptions {
         token: query.token,
-        // A viewer waits for its server however long it takes, saying so.
-        first_connect_grace: Duration::from_secs(365 * 24 * 3600),
+        first_connect_grace: farfield_viewer::WAIT_FOR_SERVER,
         ..SessionOptions::default()
     };
     let viewer = Viewer::over(

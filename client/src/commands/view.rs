@@ -9,7 +9,6 @@
 //! closes the window.
 
 use std::path::PathBuf;
-use std::time::Duration;
 
 use anyhow::Context;
 use farfield_net::SessionOptions;
@@ -48,8 +47,7 @@ pub fn run(job: ViewJob) -> anyhow::Result<()> {
             let session = SessionOptions {
                 token: job.token.clone(),
                 ca_cert: job.ca_cert.clone(),
-                // A viewer waits for its server however long it takes, saying so.
-                first_connect_grace: Duration::from_secs(365 * 24 * 3600),
+                first_connect_grace: farfield_viewer::WAIT_FOR_SERVER,
                 ..SessionOptions::default()
             };
             Viewer::open_remote(url, scene, session, job.settings.cache_bytes())?

@@ -18,7 +18,7 @@ use farfield_image::compare;
 use farfield_render::headless_or_skip;
 use farfield_store::write_atomic;
 use farfield_tests::shared_data;
-use farfield_view::camera_spec::{CameraSpec, parse_camera};
+use farfield_view::camera_spec::CameraSpec;
 use farfield_view::render_job::Source;
 
 use crate::build;
@@ -67,10 +67,12 @@ fn reference(file: &Path, camera: CameraSpec, width: u32, height: u32) -> Option
     Some(rendered.rgba)
 }
 
-/// A link's camera (`eye=..&target=..&fov=..`) as a spec.
+/// A link's camera (`eye=..&target=..&fov=..`) as a spec, read as the
+/// viewer reads its address.
 fn camera_of_fragment(fragment: &str) -> CameraSpec {
-    parse_camera(&fragment.trim_start_matches('#').replace('&', ","))
+    farfield_viewer::link::parse_fragment(fragment)
         .unwrap_or_else(|e| panic!("camera {fragment:?}: {e}"))
+        .unwrap_or_else(|| panic!("no camera in {fragment:?}"))
 }
 
 /// PSNR of `shown` against `reference` (RGB; alpha ignored).

@@ -27,6 +27,17 @@ impl Drop for Browser {
     }
 }
 
+/// The `chromium` on `PATH` (Debian's is /usr/bin/chromium), which the
+/// tests checked is there.
+fn chromium() -> String {
+    std::env::var_os("PATH")
+        .into_iter()
+        .flat_map(|p| std::env::split_paths(&p).collect::<Vec<_>>())
+        .map(|dir| dir.join("chromium"))
+        .find(|p| p.is_file())
+        .map_or_else(|| "chromium".to_owned(), |p| p.display().to_string())
+}
+
 /// A port nothing listens on now.
 fn free_port() -> u16 {
     std::net::TcpListener::bind("127.0.0.1:0")
@@ -99,7 +110,7 @@ impl Browser {
         let caps = json!({
             "capabilities": { "alwaysMatch": {
                 "browserName": "chrome",
-                "goog:chromeOptions": { "binary": "/usr/bin/chromium", "args": args },
+                "goog:chromeOptions": { "binary": chromium(), "args": args },
             }}
         });
         let mut response = agent
