@@ -114,16 +114,42 @@ impl SourceArgs {
     }
 }
 
+/// Where to look from: an eye and a target, or an orbit of the scene.
+#[derive(Debug, clap::Args)]
+pub struct CameraArgs {
+    /// eye=x,y,z,target=x,y,z[,fov=DEG] (world units).
+    #[arg(long, value_parser = parse_camera, conflicts_with = "orbit")]
+    pub camera: Option<CameraSpec>,
+    /// azimuth=DEG,elevation=DEG,distance=R (R in scene radii from the centre).
+    #[arg(long, value_parser = parse_orbit)]
+    pub orbit: Option<CameraSpec>,
+}
+
+impl CameraArgs {
+    /// The camera given, if any.
+    pub fn spec(&self) -> Option<CameraSpec> {
+        self.camera.or(self.orbit)
+    }
+}
+
+/// How a client proves itself to a server, and which server it trusts.
+#[derive(Debug, clap::Args)]
+pub struct AccessArgs {
+    /// The server's access token (see `farfield-server serve --token`).
+    #[arg(long, value_name = "TOKEN")]
+    pub token: Option<String>,
+    /// Trust this certificate authority (PEM) for an https:// server, in
+    /// place of the public roots: a private or self-signed server.
+    #[arg(long, value_name = "PEM")]
+    pub ca_cert: Option<std::path::PathBuf>,
+}
+
 #[derive(Debug, clap::Args)]
 pub struct ViewArgs {
     #[command(flatten)]
     pub source: SourceArgs,
-    /// Open at eye=x,y,z,target=x,y,z[,fov=DEG] (default: the whole scene).
-    #[arg(long, value_parser = parse_camera, conflicts_with = "orbit")]
-    pub camera: Option<CameraSpec>,
-    /// Open at azimuth=DEG,elevation=DEG,distance=R (scene radii).
-    #[arg(long, value_parser = parse_orbit)]
-    pub orbit: Option<CameraSpec>,
+    #[command(flatten)]
+    pub camera: CameraArgs,
     /// The window's inner size.
     #[arg(long, value_parser = parse_size, default_value = "1280x800")]
     pub size: (u32, u32),
@@ -141,12 +167,8 @@ pub struct ViewArgs {
     /// Start with the panel hidden (Tab shows it).
     #[arg(long)]
     pub no_panel: bool,
-    /// The server's access token.
-    #[arg(long, value_name = "TOKEN")]
-    pub token: Option<String>,
-    /// Trust this certificate authority (PEM) for an https:// server.
-    #[arg(long, value_name = "PEM")]
-    pub ca_cert: Option<std::path::PathBuf>,
+    #[command(flatten)]
+    pub access: AccessArgs,
     /// Save the window here whenever the resting view becomes refined, and
     /// print the camera (for scripts and tests).
     #[arg(long, value_name = "PNG")]
@@ -243,12 +265,8 @@ impl From<KernelArg> for farfield_render::Kernel {
 pub struct RenderArgs {
     #[command(flatten)]
     pub source: SourceArgs,
-    /// eye=x,y,z,target=x,y,z,fov=DEG (world units).
-    #[arg(long, value_parser = parse_camera, conflicts_with = "orbit")]
-    pub camera: Option<CameraSpec>,
-    /// azimuth=DEG,elevation=DEG,distance=R (R in scene radii from the centre).
-    #[arg(long, value_parser = parse_orbit)]
-    pub orbit: Option<CameraSpec>,
+    #[command(flatten)]
+    pub camera: CameraArgs,
     #[arg(long, value_parser = parse_size, default_value = "800x600")]
     pub size: (u32, u32),
     /// The PNG to write; with --path, the folder for frames.csv (and frames).
@@ -292,13 +310,8 @@ pub struct RenderArgs {
     /// Let the server push pages it predicts when idle.
     #[arg(long)]
     pub push: bool,
-    /// The server's access token (see `farfield-server serve --token`).
-    #[arg(long, value_name = "TOKEN")]
-    pub token: Option<String>,
-    /// Trust this certificate authority (PEM) for an https:// server, in
-    /// place of the public roots: a private or self-signed server.
-    #[arg(long, value_name = "PEM")]
-    pub ca_cert: Option<std::path::PathBuf>,
+    #[command(flatten)]
+    pub access: AccessArgs,
     /// Give up after this many seconds (the image so far is still written).
     #[arg(long, default_value_t = 120.0)]
     pub timeout_s: f64,
@@ -349,12 +362,12 @@ fn view_job(args: ViewArgs) -> anyhow::Result<commands::view::ViewJob> {
     };
     Ok(commands::view::ViewJob {
         source: args.source.into_source()?,
-        camera: args.camera.or(args.orbit),
+        camera: args.camera.spec(),
         size: args.size,
         settings,
         show_panel: !args.no_panel,
-        token: args.token,
-        ca_cert: args.ca_cert,
+        token: args.access.token,
+        ca_cert: args.access.ca_cert,
         screenshot_when_refined: args.screenshot_when_refined,
         flight_seconds: args.flight,
     })

@@ -34,7 +34,7 @@ pub fn run(args: RenderArgs) -> anyhow::Result<()> {
     );
     let job = RenderJob {
         source,
-        camera: args.camera.or(args.orbit).unwrap_or_default(),
+        camera: args.camera.spec().unwrap_or_default(),
         width: args.size.0,
         height: args.size.1,
         out: Some(args.out),
@@ -44,8 +44,8 @@ pub fn run(args: RenderArgs) -> anyhow::Result<()> {
         coverage: args.coverage,
         session: SessionOptions {
             allow_push: args.push,
-            token: args.token.clone(),
-            ca_cert: args.ca_cert.clone(),
+            token: args.access.token.clone(),
+            ca_cert: args.access.ca_cert.clone(),
             ..SessionOptions::default()
         },
         cache_bytes: (args.cache_mib.max(1) << 20) as usize,
