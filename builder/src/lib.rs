@@ -22,6 +22,7 @@ pub mod cubes;
 pub mod knn;
 pub mod layout;
 pub mod leaves;
+pub mod plp;
 pub mod progress;
 pub mod tree;
 pub mod zero_area;

@@ -46,6 +46,10 @@ pub enum Command {
     /// The color-cube paper's Table 2: full geometry against the cube
     /// hierarchy at several distances, with speedups and image error.
     BenchCubes(Box<BenchCubesArgs>),
+    /// PLP's Table 1 and Figures 8 and 9: visible coverage, wrong pixels
+    /// and frame time at several budgets along a camera path, next to the
+    /// paper's numbers.
+    BenchPlp(Box<BenchPlpArgs>),
     /// Error against run time: sweep a mode's parameter over cameras, against a reference.
     Bench(Box<BenchArgs>),
     /// One HTML page (plots, tables, machine, the papers' figures) from bench folders.
@@ -74,6 +78,17 @@ pub enum Command {
         /// Print JSON; an infinite PSNR (identical images) is the string "inf".
         #[arg(long)]
         json: bool,
+    },
+    /// Write a generated scene's camera path (gen:city, gen:cars) as JSON keyframes.
+    Path {
+        /// The scene, gen:NAME.
+        input: String,
+        /// Generator parameters, `key=value`, as for the scene.
+        #[arg(long = "param", value_name = "KEY=VALUE")]
+        params: Vec<String>,
+        /// The JSON file to write.
+        #[arg(long)]
+        out: PathBuf,
     },
     /// Run the reference traversal on a paged file and report the cut.
     Traverse {
@@ -161,6 +176,9 @@ pub struct ViewArgs {
     /// Most nodes a frame draws (0: no budget).
     #[arg(long, default_value_t = 0)]
     pub budget: u64,
+    /// PLP files: the share of the triangles a frame may draw, percent.
+    #[arg(long, default_value_t = 100.0)]
+    pub plp_budget: f64,
     /// Resident pages kept, MiB.
     #[arg(long, default_value_t = 512)]
     pub cache_mib: u64,
@@ -246,6 +264,39 @@ pub struct BenchCubesArgs {
     pub json: bool,
 }
 
+#[derive(Debug, clap::Args)]
+pub struct BenchPlpArgs {
+    /// A PLP file (`farfield-server build --kind plp`).
+    #[arg(long)]
+    pub file: PathBuf,
+    /// Its camera path (`farfield path gen:city --out city-path.json`):
+    /// one frame per keyframe.
+    #[arg(long)]
+    pub path: PathBuf,
+    /// PLP's budgets.
+    #[arg(long, value_delimiter = ',', default_value = "1%,2%,5%,10%")]
+    pub budgets: Vec<farfield_traverse::Budget>,
+    /// The centroid-sorted baseline's budget.
+    #[arg(long, default_value = "10%")]
+    pub centroid: farfield_traverse::Budget,
+    #[arg(long, value_parser = parse_size, default_value = "640x480")]
+    pub size: (u32, u32),
+    #[arg(long, default_value_t = 3)]
+    pub repeats: usize,
+    /// Every Nth keyframe of the path.
+    #[arg(long, default_value_t = 1)]
+    pub stride: usize,
+    /// Print the paper's Table 1 row beside ours: `city` or `cars`.
+    #[arg(long, value_parser = ["city", "cars"])]
+    pub paper: Option<String>,
+    /// Folder for frames.csv (the per-frame curves), visible.svg and
+    /// frame_time.svg (Figures 8 and 9, a and b), table.md and report.json.
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    #[arg(long)]
+    pub json: bool,
+}
+
 #[derive(Debug, Clone, Copy, ValueEnum)]
 pub enum KernelArg {
     Square,
@@ -304,6 +355,14 @@ pub struct RenderArgs {
     pub coverage: farfield_render::Coverage,
     #[arg(long, value_enum, default_value = "square")]
     pub kernel: KernelArg,
+    /// PLP files: the triangles a frame may draw, as a share of the scene
+    /// (`5%`) or a count (`20000`); `all` draws everything.
+    #[arg(long, default_value = "all")]
+    pub budget: farfield_traverse::Budget,
+    /// PLP files: a frame time in milliseconds instead (time-critical: the
+    /// triangle budget follows the measured draw rate).
+    #[arg(long, conflicts_with = "budget")]
+    pub budget_ms: Option<f64>,
     /// Client page cache, MiB.
     #[arg(long, default_value_t = 1024)]
     pub cache_mib: u64,
@@ -333,6 +392,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Bench(args) => commands::measure::bench(*args),
         Command::Report { dirs, out } => commands::measure::report(&dirs, &out),
         Command::BenchCubes(args) => commands::measure::bench_cubes(*args),
+        Command::BenchPlp(args) => commands::measure::bench_plp(*args),
         Command::BenchStream {
             scene,
             clients,
@@ -342,6 +402,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
             json,
         } => commands::measure::bench_stream(&scene, clients, seconds, cache_mib, repeats, json),
         Command::Demo { out } => commands::demo::print(out),
+        Command::Path { input, params, out } => commands::path::run(&input, &params, &out),
         Command::Traverse {
             file,
             orbit,
@@ -358,6 +419,7 @@ fn view_job(args: ViewArgs) -> anyhow::Result<commands::view::ViewJob> {
         kernel: args.kernel.into(),
         node_budget: args.budget,
         cache_mib: args.cache_mib.max(1),
+        plp_budget_percent: args.plp_budget.clamp(0.0, 100.0),
         ..Default::default()
     };
     Ok(commands::view::ViewJob {

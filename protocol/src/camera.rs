@@ -131,6 +131,14 @@ impl View {
         }
     }
 
+    /// Whether `points` all lie strictly behind one side plane, or all
+    /// behind the eye: a conservative test that their convex hull (a
+    /// triangle, a tetrahedron) is out of view.
+    pub fn all_outside(&self, points: &[DVec3]) -> bool {
+        let behind = |n: DVec3| points.iter().all(|p| (*p - self.eye).dot(n) < 0.0);
+        behind(self.forward) || self.planes.iter().any(|n| behind(*n))
+    }
+
     /// Projected diameter of a sphere in pixels; infinite when the eye is
     /// inside or at the sphere, so such a node is always refined.
     #[inline]

@@ -27,6 +27,9 @@ pub enum HierarchyKind {
     Spheres = 1,
     /// Chamberlain et al.'s color-cube octree.
     Cubes = 2,
+    /// Klosowski and Silva's PLP tessellation: a root whose children are
+    /// Delaunay cells (`plp_codec`).
+    Plp = 3,
 }
 
 impl HierarchyKind {
@@ -34,6 +37,7 @@ impl HierarchyKind {
         match v {
             1 => Ok(Self::Spheres),
             2 => Ok(Self::Cubes),
+            3 => Ok(Self::Plp),
             other => Err(FormatError::BadHeader(format!(
                 "unknown hierarchy kind {other}"
             ))),
@@ -44,6 +48,7 @@ impl HierarchyKind {
         match self {
             Self::Spheres => "spheres",
             Self::Cubes => "cubes",
+            Self::Plp => "plp",
         }
     }
 }
@@ -322,6 +327,23 @@ impl FileHeader {
                     "cluster size {} is not a power of two up to {}",
                     self.cluster,
                     crate::cube_codec::MAX_CLUSTER
+                ));
+            }
+            HierarchyKind::Plp if self.node_bytes != crate::plp_codec::NODE_BYTES as u32 => {
+                return bad(format!(
+                    "PLP node size {} is not {}",
+                    self.node_bytes,
+                    crate::plp_codec::NODE_BYTES
+                ));
+            }
+            HierarchyKind::Plp
+                if self.cluster != 0
+                    || self.nodes != self.leaves + 1
+                    || self.pages.first().is_some_and(|p| p.node_count != 1) =>
+            {
+                return bad(format!(
+                    "a PLP tessellation is a root alone in page 0 and its cells after ({} nodes, {} leaves, cluster {})",
+                    self.nodes, self.leaves, self.cluster
                 ));
             }
             _ => {}

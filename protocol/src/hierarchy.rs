@@ -13,6 +13,7 @@ use crate::FormatError;
 use crate::cube_codec::{self, Channels, CubeRecord, Payload};
 use crate::file::{FileHeader, HierarchyKind};
 use crate::page::{Page, PageHeader};
+use crate::plp_codec::{CellPage, Skeleton};
 use crate::sphere_codec::{self, NodeLayout, NodeRecord};
 
 /// One verified page, ready for traversal.
@@ -29,6 +30,17 @@ pub struct ResidentPage {
     pub byte_len: usize,
     /// Color-cube pages: each cell's record and decoded payload.
     pub cubes: Option<CubePage>,
+    /// PLP pages: the skeleton (page 0) or cells' triangles.
+    pub plp: Option<PlpPage>,
+}
+
+/// A resident PLP page, decoded once on arrival.
+#[derive(Debug, Clone)]
+pub enum PlpPage {
+    /// Page 0: the whole tessellation.
+    Skeleton(Box<Skeleton>),
+    /// Cells and their triangles.
+    Cells(CellPage),
 }
 
 /// The cells of a resident color-cube page, decoded once on arrival.
@@ -111,7 +123,9 @@ impl Hierarchy {
             })?;
         let page = match self.header.kind {
             HierarchyKind::Spheres => Page::parse(bytes, index, self.header.node_bytes)?,
-            HierarchyKind::Cubes => Page::parse_with_payload(bytes, index, self.header.node_bytes)?,
+            HierarchyKind::Cubes | HierarchyKind::Plp => {
+                Page::parse_with_payload(bytes, index, self.header.node_bytes)?
+            }
         };
         let h = page.header;
         if h.first_node != entry.first_node
@@ -123,12 +137,16 @@ impl Hierarchy {
                 message: "page disagrees with the directory".into(),
             });
         }
-        let (child_counts, cubes) = match self.header.kind {
-            HierarchyKind::Spheres => (self.sphere_child_counts(&page)?, None),
+        let (child_counts, cubes, plp) = match self.header.kind {
+            HierarchyKind::Spheres => (self.sphere_child_counts(&page)?, None, None),
             HierarchyKind::Cubes => {
                 let cubes = self.cube_page(&page)?;
                 let counts = cubes.records.iter().map(CubeRecord::child_count).collect();
-                (counts, Some(cubes))
+                (counts, Some(cubes), None)
+            }
+            HierarchyKind::Plp => {
+                let (counts, plp) = self.plp_page(&page)?;
+                (counts, None, Some(plp))
             }
         };
         // Every child must be a real node after its parent, and the page's
@@ -170,8 +188,8 @@ impl Hierarchy {
         self.resident_bytes += bytes.len();
         self.pages[index as usize] = Some(ResidentPage {
             header: h,
-            // Cube records live decoded in `cubes`.
-            records: if cubes.is_some() {
+            // Cube and PLP records live decoded in `cubes` and `plp`.
+            records: if cubes.is_some() || plp.is_some() {
                 Vec::new()
             } else {
                 let mut r = Vec::with_capacity(page.records.len() + 8);
@@ -182,6 +200,7 @@ impl Hierarchy {
             child_offset,
             byte_len: bytes.len(),
             cubes,
+            plp,
         });
         Ok(())
     }
@@ -250,6 +269,38 @@ impl Hierarchy {
             )));
         }
         Ok(cubes)
+    }
+
+    /// Decodes a PLP page: page 0 is the root (its record the cell count)
+    /// and the skeleton; every other page holds cells, which have no
+    /// children.
+    fn plp_page(&self, page: &Page) -> Result<(Vec<u32>, PlpPage), FormatError> {
+        let bad = |message: String| FormatError::BadPage {
+            page: page.header.index,
+            message,
+        };
+        if page.header.index == 0 {
+            let mut word = [0u8; 4];
+            word.copy_from_slice(page.records.get(..4).ok_or_else(|| bad("no root".into()))?);
+            let cells = u32::from_le_bytes(word);
+            let skeleton =
+                Skeleton::decode(page.payload, self.header.root_center, self.header.leaves)
+                    .map_err(|e| bad(format!("skeleton: {e}")))?;
+            return Ok((vec![cells], PlpPage::Skeleton(Box::new(skeleton))));
+        }
+        let cells = CellPage::decode(page.records, page.payload).map_err(bad)?;
+        Ok((
+            vec![0; page.header.node_count as usize],
+            PlpPage::Cells(cells),
+        ))
+    }
+
+    /// The PLP skeleton, once page 0 is resident.
+    pub fn plp_skeleton(&self) -> Option<&Skeleton> {
+        match self.page(0)?.plp.as_ref()? {
+            PlpPage::Skeleton(s) => Some(s),
+            PlpPage::Cells(_) => None,
+        }
     }
 
     /// Drops a page (cache eviction). Its descendants stay resident but are

@@ -12,6 +12,8 @@
 //!   to the parent (13 bits), normal (14 bits), cone (2 bits), 5-6-5 color.
 //! - [`cube_codec`]: the color-cube octree's cell record, clustered
 //!   sub-cubes and cell-relative leaf geometry (Chamberlain et al.).
+//! - [`plp_codec`]: the PLP tessellation (Klosowski & Silva): the cell
+//!   skeleton in page 0, each page's cells and their triangles.
 //! - [`shading`]: the fixed light the cube builder bakes in and the
 //!   client's geometry pass repeats; [`octahedral`]: 32-bit unit normals.
 //! - [`camera`]: a view with f64 frustum planes and projected-size math.
@@ -34,6 +36,7 @@ pub mod octahedral;
 pub mod page;
 pub mod paged_file;
 pub mod percent;
+pub mod plp_codec;
 pub mod shading;
 pub mod sphere_codec;
 

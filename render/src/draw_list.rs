@@ -30,6 +30,16 @@ impl Renderer {
                     background: style.background,
                 },
             ),
+            DrawList::Triangles(cut) => {
+                let started = Instant::now();
+                let mut vertices = Vec::new();
+                crate::plp::pack_plp(hierarchy, cut, camera.eye, &mut vertices);
+                let pack_ms = started.elapsed().as_secs_f64() * 1e3;
+                let mut image =
+                    self.render_geometry(camera, &vertices, &[], style.coverage, style.background)?;
+                image.upload_ms += pack_ms;
+                Ok(image)
+            }
         }
     }
 }

@@ -25,7 +25,9 @@ mod draw_list;
 mod error_scope;
 mod geometry;
 mod instances;
+mod item_buffer;
 mod output;
+mod plp;
 mod renderer;
 mod target;
 #[cfg(test)]
@@ -40,6 +42,8 @@ pub use draw_list::{CubeFrame, draw_cut};
 pub use geometry::snorm4;
 pub use geometry::{Coverage, GpuVertex, pack_leaves};
 pub use instances::DEFAULT_COLOR;
+pub use item_buffer::visible_ids;
+pub use plp::pack_plp;
 pub use renderer::{MIN_RADIUS_PX, Renderer};
 
 /// The footprint of a splat with a normal.

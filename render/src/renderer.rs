@@ -53,6 +53,9 @@ pub struct Renderer {
     geometry: Option<GeometryPipelines>,
     /// A capture under way ([`Self::request_capture`]): set when mapped.
     capture: Option<CaptureSlot>,
+    /// The item buffer's pipeline and frame ([`Self::item_buffer`]), made
+    /// when first needed.
+    pub(super) item_buffer: Option<super::item_buffer::ItemBuffer>,
 }
 
 /// Where a capture's mapping result lands.
@@ -243,6 +246,7 @@ impl Renderer {
             scratch: Vec::new(),
             geometry: None,
             capture: None,
+            item_buffer: None,
             gpu,
         })
     }

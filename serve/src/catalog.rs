@@ -162,8 +162,15 @@ impl ServedScene {
 /// Children of page p's nodes are the breadth-first range from p's
 /// `first_child` to the next page's (or to the node count for the last
 /// page); the pages holding that range are found through the directory.
+///
+/// A PLP tessellation has none to offer: its root's children are every
+/// cell, so reading them ahead would read the whole scene. Its clients ask
+/// in their own projection order, which is the prefetch order.
 fn child_ranges(h: &FileHeader) -> Vec<Range<u32>> {
     let n = h.pages.len();
+    if h.kind == farfield_protocol::file::HierarchyKind::Plp {
+        return vec![0..0; n];
+    }
     (0..n)
         .map(|p| {
             let start = h.pages[p].first_child;

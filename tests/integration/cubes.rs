@@ -143,6 +143,7 @@ fn streamed_cubes_at_tiny_eps_equal_the_geometry_image() {
             session: SessionOptions::default(),
             cache_bytes: 256 << 20,
             timeout: Duration::from_secs(120),
+            budget: Default::default(),
         };
         let streamed = run(&job, &mut renderer, false).unwrap();
         assert!(
@@ -695,6 +696,7 @@ fn eps_adapts_to_the_frame_budget_in_flight() {
         frames_dir: None,
         settle: false,
         timeout: Duration::from_secs(60),
+        budget: Default::default(),
     };
     let mut viewer = Viewer::open_file(&path).unwrap();
     let (stats, _) = fly(&mut viewer, &mut renderer, &job, std::time::Instant::now()).unwrap();

@@ -158,6 +158,7 @@ fn psnr_of_renders(
             session: SessionOptions::default(),
             cache_bytes: 256 << 20,
             timeout: Duration::from_secs(120),
+            budget: Default::default(),
         };
         let rendered = run(&job, renderer, false).expect("render");
         assert!(rendered.report.refined, "{name} {which}: not refined");

@@ -6,10 +6,11 @@
 
 use farfield_builder::cubes::{CubeOptions, build_cubes};
 use farfield_builder::import::{Params, load_input};
+use farfield_builder::plp::{PlpOptions, build_plp};
 use farfield_builder::{BuildOptions, PagedFile, build_spheres};
 use farfield_protocol::camera::{Camera, Containment, View};
 use farfield_protocol::file::HierarchyKind;
-use farfield_protocol::hierarchy::Hierarchy;
+use farfield_protocol::hierarchy::{Hierarchy, PlpPage};
 use farfield_traverse::{DrawList, KINDS, TraversalOptions};
 use glam::DVec3;
 
@@ -33,6 +34,13 @@ fn file_of(kind: HierarchyKind) -> PagedFile {
                 ..CubeOptions::default()
             };
             build_cubes(scene, &options).expect("cubes").0
+        }
+        HierarchyKind::Plp => {
+            let options = PlpOptions {
+                page_bytes: 8192,
+                ..PlpOptions::default()
+            };
+            build_plp(&scene, &options).expect("plp").0
         }
     }
 }
@@ -66,7 +74,7 @@ fn cameras(h: &Hierarchy) -> Vec<Camera> {
 }
 
 /// Bounding spheres of everything a draw list draws.
-fn drawn_spheres(list: DrawList<'_>) -> Vec<(DVec3, f64)> {
+fn drawn_spheres(h: &Hierarchy, list: DrawList<'_>) -> Vec<(DVec3, f64)> {
     let cube = |min: DVec3, edge: f64| (min + DVec3::splat(edge * 0.5), edge * 0.5 * 3f64.sqrt());
     match list {
         DrawList::Splats(splats) => splats.iter().map(|s| (s.center, s.radius)).collect(),
@@ -75,6 +83,29 @@ fn drawn_spheres(list: DrawList<'_>) -> Vec<(DVec3, f64)> {
             .iter()
             .map(|f| cube(f.min, f.edge))
             .chain(cut.leaves.iter().map(|l| cube(l.min, l.edge)))
+            .collect(),
+        DrawList::Triangles(cut) => cut
+            .triangles
+            .iter()
+            .map(|t| {
+                let Some(PlpPage::Cells(page)) =
+                    h.page(t.page as usize).and_then(|p| p.plp.as_ref())
+                else {
+                    panic!(
+                        "drew a triangle of page {}, which is not a resident cell page",
+                        t.page
+                    );
+                };
+                let corners = page.triangles[t.index as usize]
+                    .corners
+                    .map(|c| page.world(c));
+                let centre = (corners[0] + corners[1] + corners[2]) / 3.0;
+                let radius = corners
+                    .iter()
+                    .map(|c| c.distance(centre))
+                    .fold(0.0, f64::max);
+                (centre, radius)
+            })
             .collect(),
     }
 }
@@ -122,7 +153,7 @@ fn every_kind_draws_nothing_outside_the_frustum_and_wants_only_pages_the_file_ha
                         kind.name
                     );
                     let view = test_view(camera, h);
-                    let drawn = drawn_spheres(traversal.draw_list());
+                    let drawn = drawn_spheres(h, traversal.draw_list());
                     for &(center, radius) in &drawn {
                         assert_ne!(
                             view.classify(center, radius),

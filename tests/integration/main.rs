@@ -11,6 +11,7 @@ mod extremes;
 mod holes;
 mod kinds;
 mod layout;
+mod plp;
 mod progress;
 mod real_data;
 pub(crate) mod serve;

@@ -56,7 +56,7 @@ pub(crate) fn runtime() -> tokio::runtime::Runtime {
         .unwrap()
 }
 
-fn serve(rt: &tokio::runtime::Runtime, dir: &Path, port: u16) -> RunningServer {
+pub(crate) fn serve(rt: &tokio::runtime::Runtime, dir: &Path, port: u16) -> RunningServer {
     let config = ServerConfig::new(dir, SocketAddr::from(([127, 0, 0, 1], port)));
     rt.block_on(start(config)).expect("server starts")
 }
@@ -75,6 +75,7 @@ pub(crate) fn job(source: Source, camera: CameraSpec) -> RenderJob {
         session: SessionOptions::default(),
         cache_bytes: 256 << 20,
         timeout: Duration::from_secs(60),
+        budget: Default::default(),
     }
 }
 

@@ -135,6 +135,7 @@ pub fn run_bench(job: &BenchStreamJob) -> anyhow::Result<BenchStreamReport> {
         session: SessionOptions::default(),
         cache_bytes: usize::MAX,
         timeout: Duration::from_secs(600),
+        budget: Default::default(),
     };
     let refined = run(&render_job, &mut renderer, false)?;
 

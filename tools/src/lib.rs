@@ -9,6 +9,8 @@
 //! - [`bench`](mod@bench): `farfield bench` and `farfield report`: error against run
 //!   time for every rendering mode, tables, plots and an HTML page.
 //! - [`bench_cubes`]: the color-cube paper's Table 2 (`farfield bench-cubes`).
+//! - [`bench_plp`]: PLP's Table 1 and Figures 8 and 9 (`farfield bench-plp`):
+//!   visible coverage from item buffers, wrong pixels, frame time.
 //! - [`bench_stream`]: the memory server on loopback (`farfield bench-stream`).
 //! - [`bench_build`]: `farfield-server bench build` and `bench traverse`:
 //!   build throughput, traversal rate.
@@ -20,6 +22,7 @@
 pub mod bench;
 pub mod bench_build;
 pub mod bench_cubes;
+pub mod bench_plp;
 pub mod bench_stream;
 pub mod meters;
 pub mod reference;

@@ -11,11 +11,16 @@
 //! - [`spheres`]: QSplat's bounding-sphere traversal (splats).
 //! - [`cubes`]: the color-cube octree's `Render(cell)` (cube faces and
 //!   leaf triangles).
+//! - [`plp`]: Prioritized-Layered Projection over a Delaunay tessellation
+//!   (triangles in solidity order within a budget), and its
+//!   centroid-sorted baseline.
 //! - [`wanted`]: the pages a traversal asks for and the pages it read.
 //!
 //! A new kind is a new module with a [`Registered`] entry in [`KINDS`].
 
+pub mod budget;
 pub mod cubes;
+pub mod plp;
 pub mod spheres;
 pub mod wanted;
 
@@ -23,6 +28,7 @@ use farfield_protocol::camera::Camera;
 use farfield_protocol::file::HierarchyKind;
 use farfield_protocol::hierarchy::Hierarchy;
 
+pub use budget::Budget;
 pub use wanted::WantedPage;
 
 /// What every kind is asked besides the pages and the camera.
@@ -35,6 +41,8 @@ pub struct TraversalOptions {
     pub min_alpha: u8,
     /// Fill [`Traversal::touched_pages`] (cache recency, overfetch).
     pub record_pages: bool,
+    /// Budgeted kinds (PLP): how many triangles a frame may draw.
+    pub budget: Budget,
 }
 
 impl Default for TraversalOptions {
@@ -43,6 +51,7 @@ impl Default for TraversalOptions {
             threshold_px: 1.0,
             min_alpha: 1,
             record_pages: false,
+            budget: Budget::Unlimited,
         }
     }
 }
@@ -55,6 +64,8 @@ pub enum DrawList<'a> {
     /// Cube faces, and leaves whose triangles the renderer reads from the
     /// hierarchy's resident pages.
     Cubes(&'a cubes::CubeCut),
+    /// Triangles stored in the hierarchy's resident pages (PLP).
+    Triangles(&'a plp::PlpCut),
 }
 
 /// How much of the hierarchy one traversal looked at.
@@ -102,8 +113,15 @@ pub struct Registered {
     pub make: fn() -> Box<dyn Traversal>,
 }
 
-/// Every kind this client can draw.
-pub const KINDS: &[Registered] = &[spheres::REGISTERED, cubes::REGISTERED];
+/// Every kind this client can draw. The first entry for a hierarchy kind
+/// is the one its files are drawn with; later ones (PLP's centroid
+/// baseline) are chosen by name.
+pub const KINDS: &[Registered] = &[
+    spheres::REGISTERED,
+    cubes::REGISTERED,
+    plp::REGISTERED,
+    plp::CENTROID,
+];
 
 /// The traversal for a file of `kind`.
 pub fn for_hierarchy(kind: HierarchyKind) -> Box<dyn Traversal> {
@@ -125,12 +143,21 @@ mod tests {
     use super::*;
 
     #[test]
-    fn every_hierarchy_kind_has_one_registered_traversal() {
-        for kind in [HierarchyKind::Spheres, HierarchyKind::Cubes] {
-            let n = KINDS.iter().filter(|k| k.hierarchy == kind).count();
-            assert_eq!(n, 1, "{kind:?}");
+    fn every_hierarchy_kind_has_a_registered_traversal() {
+        for kind in [
+            HierarchyKind::Spheres,
+            HierarchyKind::Cubes,
+            HierarchyKind::Plp,
+        ] {
+            let first = KINDS.iter().find(|k| k.hierarchy == kind).map(|k| k.name);
+            assert!(first.is_some(), "{kind:?}");
             assert_eq!(for_hierarchy(kind).registered().hierarchy, kind);
+            assert_eq!(Some(for_hierarchy(kind).registered().name), first);
         }
+        assert_eq!(
+            named("centroid").map(|k| k.hierarchy),
+            Some(HierarchyKind::Plp)
+        );
         for k in KINDS {
             assert_eq!(named(k.name).map(|r| r.hierarchy), Some(k.hierarchy));
         }

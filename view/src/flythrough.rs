@@ -16,6 +16,7 @@ use farfield_render::{Renderer, SplatStyle};
 use serde::Serialize;
 use web_time::Instant;
 
+use crate::budget::BudgetSpec;
 use crate::frame_loop::{FrameTimes, LastCut, Settle, Until, draw_frame};
 use crate::path::CameraPath;
 use crate::viewer::Viewer;
@@ -55,6 +56,8 @@ pub struct FlyJob {
     /// Refine at the last camera after the path ends.
     pub settle: bool,
     pub timeout: Duration,
+    /// Budgeted kinds (PLP): triangles or milliseconds a frame.
+    pub budget: BudgetSpec,
 }
 
 /// One row of the per-frame CSV.
@@ -124,6 +127,7 @@ pub fn fly(
     let frames = (job.path.duration() * job.fps).ceil().max(0.0) as u64 + 1;
     let mut stats = Vec::with_capacity(frames as usize + 16);
     let mut cut = LastCut::default();
+    job.budget.apply(&mut cut);
     let mut rgba = Vec::new();
     for frame in 0..frames {
         viewer.pump(Duration::ZERO)?;

@@ -14,10 +14,13 @@ use anyhow::bail;
 use farfield_protocol::camera::Camera;
 use farfield_protocol::file::{FileHeader, HierarchyKind};
 use farfield_render::{Renderer, SplatStyle};
-use farfield_traverse::{Counts, DrawList, Traversal, TraversalOptions, WantedPage};
+use farfield_traverse::{
+    Budget, Counts, DrawList, Registered, Traversal, TraversalOptions, WantedPage,
+};
 use serde::Serialize;
 use web_time::Instant;
 
+use crate::budget::TimeBudget;
 use crate::viewer::Viewer;
 
 /// When a render stops.
@@ -46,14 +49,40 @@ pub struct FrameTimes {
 #[derive(Debug, Default)]
 pub struct LastCut {
     traversal: Option<Box<dyn Traversal>>,
+    /// How many triangles a budgeted kind (PLP) may draw a frame.
+    pub budget: Budget,
+    /// A budget in milliseconds instead, turned into triangles each frame
+    /// from the measured draw rate (it overrides `budget`).
+    pub time_budget: Option<TimeBudget>,
+    /// The registered kind to draw with, when the file's hierarchy is its;
+    /// otherwise the hierarchy's first.
+    prefer: Option<&'static Registered>,
 }
 
 impl LastCut {
+    /// A cut that draws with the registered kind `kind` (PLP's centroid
+    /// baseline, say) wherever the file's hierarchy is `kind`'s.
+    pub fn of_kind(kind: &'static Registered) -> Self {
+        Self {
+            prefer: Some(kind),
+            ..Self::default()
+        }
+    }
+
     /// The traversal for `kind`, made (or replaced) when needed.
     fn traversal_for(&mut self, kind: HierarchyKind) -> &mut dyn Traversal {
+        let wanted = self.prefer.filter(|r| r.hierarchy == kind);
         let traversal = match self.traversal.take() {
-            Some(t) if t.registered().hierarchy == kind => t,
-            _ => farfield_traverse::for_hierarchy(kind),
+            Some(t)
+                if t.registered().hierarchy == kind
+                    && wanted.is_none_or(|w| w.name == t.registered().name) =>
+            {
+                t
+            }
+            _ => match wanted {
+                Some(w) => (w.make)(),
+                None => farfield_traverse::for_hierarchy(kind),
+            },
         };
         self.traversal.insert(traversal).as_mut()
     }
@@ -134,11 +163,14 @@ pub fn draw_frame(
         threshold_px: threshold,
         min_alpha: style.coverage.min_alpha(),
         record_pages: true,
+        budget: cut.time_budget.map_or(cut.budget, |b| b.budget()),
     };
+    let time_budget = cut.time_budget;
     let traversal = cut.traversal_for(h.header.kind);
     let t = Instant::now();
     traversal.traverse(h, camera, &options);
     let traverse_ms = t.elapsed().as_secs_f64() * 1e3;
+    let drawn = traversal.counts().drawn;
     // Ask before drawing, so the pages are on their way during the draw.
     viewer.touch(traversal.touched_pages());
     viewer.request(traversal.wanted());
@@ -147,6 +179,15 @@ pub fn draw_frame(
     };
     let image = renderer.draw(h, camera, traversal.draw_list(), style)?;
     *rgba = image.rgba;
+    if let Some(mut b) = time_budget {
+        // The upload and draw grow with the triangles; traversal is fixed.
+        b.observe(
+            drawn,
+            traverse_ms + image.upload_ms + image.draw_ms,
+            traverse_ms,
+        );
+        cut.time_budget = Some(b);
+    }
     Ok(FrameTimes {
         traverse_ms,
         upload_ms: image.upload_ms,

@@ -15,6 +15,7 @@
 //! - [`camera_spec`]: cameras and orbits before the scene is known;
 //!   [`path`]: camera paths.
 
+pub mod budget;
 pub mod camera_spec;
 pub mod flythrough;
 pub mod frame_loop;

@@ -11,6 +11,7 @@ use farfield_net::SessionOptions;
 use farfield_render::{Coverage, Kernel, Renderer, SplatStyle};
 use web_time::Instant;
 
+use crate::budget::BudgetSpec;
 use crate::camera_spec::CameraSpec;
 use crate::frame_loop::{Settle, Until};
 use crate::report::RenderReport;
@@ -42,6 +43,8 @@ pub struct RenderJob {
     pub cache_bytes: usize,
     /// Give up (keeping the image so far) after this long.
     pub timeout: Duration,
+    /// Budgeted kinds (PLP): triangles or milliseconds a frame.
+    pub budget: BudgetSpec,
 }
 
 /// A finished render: the report and the last image.
@@ -72,6 +75,7 @@ pub fn run(
     let (width, height) = (job.width, job.height);
     let mut settle = Settle::new(job.threshold_px, job.until, started, job.timeout);
     settle.keep_frames = keep_frames;
+    job.budget.apply(&mut settle.cut);
     settle.run(&mut viewer, renderer, &style, &|h| {
         camera.resolve(h, width, height)
     })?;

@@ -286,6 +286,7 @@ impl ViewerApp {
             coverage: s.coverage,
             ..SplatStyle::default()
         };
+        self.cut.budget = s.plp_budget();
         let started = Instant::now();
         match draw_frame(
             &mut self.viewer,

@@ -19,6 +19,9 @@ pub struct Settings {
     pub target_frame_ms: f64,
     /// Resident pages kept, MiB.
     pub cache_mib: u64,
+    /// PLP files: the share of the scene's triangles a frame may draw,
+    /// percent (100: all).
+    pub plp_budget_percent: f64,
 }
 
 impl Default for Settings {
@@ -31,11 +34,21 @@ impl Default for Settings {
             node_budget: 0,
             target_frame_ms: 33.0,
             cache_mib: 512,
+            plp_budget_percent: 100.0,
         }
     }
 }
 
 impl Settings {
+    /// The PLP budget the slider gives.
+    pub fn plp_budget(&self) -> farfield_traverse::Budget {
+        if self.plp_budget_percent >= 100.0 {
+            farfield_traverse::Budget::Unlimited
+        } else {
+            farfield_traverse::Budget::Fraction(self.plp_budget_percent.max(0.0) / 100.0)
+        }
+    }
+
     pub fn cache_bytes(&self) -> usize {
         usize::try_from(self.cache_mib.saturating_mul(1 << 20)).unwrap_or(usize::MAX)
     }
@@ -111,6 +124,11 @@ pub fn show(ui: &mut egui::Ui, status: &Status, settings: &mut Settings) -> Acti
                 egui::Slider::new(&mut settings.node_budget, 0..=20_000_000)
                     .logarithmic(true)
                     .text("node budget (0: none)"),
+            );
+            ui.add(
+                egui::Slider::new(&mut settings.plp_budget_percent, 0.0..=100.0)
+                    .logarithmic(true)
+                    .text("PLP budget (% of triangles)"),
             );
             ui.add(
                 egui::Slider::new(&mut settings.target_frame_ms, 8.0..=200.0)

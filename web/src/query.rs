@@ -1,5 +1,5 @@
 //! The viewer's options from the page's query string:
-//! `?panel=0&backend=webgl&kernel=round&threshold=2&budget=N&cache_mib=M&access_token=T`,
+//! `?panel=0&backend=webgl&kernel=round&threshold=2&budget=N&plp_budget=P&cache_mib=M&access_token=T`,
 //! and `flight=SECONDS` (the benchmark's scripted flight).
 
 use farfield_render::Kernel;
@@ -45,6 +45,9 @@ pub fn parse(search: &str) -> Result<Query, String> {
     }
     if let Some(b) = number("budget")? {
         options.settings.node_budget = b as u64;
+    }
+    if let Some(p) = number("plp_budget")? {
+        options.settings.plp_budget_percent = p.clamp(0.0, 100.0);
     }
     options.flight_seconds = number("flight")?;
     if let Some(m) = number("cache_mib")? {

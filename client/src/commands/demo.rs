@@ -97,6 +97,7 @@ pub fn run(job: &DemoJob) -> anyhow::Result<DemoSummary> {
         frames_dir: Some(job.out.join("frames")),
         settle: true,
         timeout: Duration::from_secs(300),
+        budget: Default::default(),
     };
     let (stats, settle) = fly(&mut viewer, &mut renderer, &fly_job, started)?;
     drop(viewer);

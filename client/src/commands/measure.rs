@@ -11,7 +11,7 @@ use farfield_tools::bench_cubes::{CubeBenchJob, format_table};
 use farfield_tools::bench_stream::{BenchStreamJob, default_job, describe, run_bench};
 use farfield_view::path::CameraPath;
 
-use crate::cli::{BenchArgs, BenchCubesArgs};
+use crate::cli::{BenchArgs, BenchCubesArgs, BenchPlpArgs};
 
 /// `farfield bench`: error against run time over a swept parameter.
 pub fn bench(args: BenchArgs) -> anyhow::Result<()> {
@@ -95,6 +95,48 @@ pub fn bench_cubes(args: BenchCubesArgs) -> anyhow::Result<()> {
         println!("{}", serde_json::to_string(&report)?);
     } else {
         print!("{}", format_table(&report));
+    }
+    Ok(())
+}
+
+/// `farfield bench-plp`: PLP's Table 1 and per-frame curves.
+pub fn bench_plp(args: BenchPlpArgs) -> anyhow::Result<()> {
+    use farfield_tools::bench_plp::{
+        PaperRow, PlpBenchJob, format_table, frames_csv, write_figures,
+    };
+    let job = PlpBenchJob {
+        file: args.file,
+        path: farfield_view::path::CameraPath::load(&args.path)?,
+        budgets: args.budgets,
+        centroid_budget: args.centroid,
+        width: args.size.0,
+        height: args.size.1,
+        repeats: args.repeats,
+        stride: args.stride,
+        paper: match args.paper.as_deref() {
+            Some("city") => Some(PaperRow::city()),
+            Some("cars") => Some(PaperRow::cars()),
+            _ => None,
+        },
+    };
+    let mut renderer =
+        Renderer::new_headless(job.width, job.height).context("starting the renderer")?;
+    let report = farfield_tools::bench_plp::run(&job, &mut renderer)?;
+    let table = format_table(&report);
+    if let Some(out) = &args.out {
+        std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
+        std::fs::write(out.join("frames.csv"), frames_csv(&report))?;
+        std::fs::write(out.join("table.md"), &table)?;
+        std::fs::write(
+            out.join("report.json"),
+            serde_json::to_string_pretty(&report)?,
+        )?;
+        write_figures(&report, out)?;
+    }
+    if args.json {
+        println!("{}", serde_json::to_string(&report)?);
+    } else {
+        print!("{table}");
     }
     Ok(())
 }

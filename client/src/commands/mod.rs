@@ -4,6 +4,7 @@
 pub mod compare;
 pub mod demo;
 pub mod measure;
+pub mod path;
 pub mod render;
 pub mod traverse;
 pub mod view;

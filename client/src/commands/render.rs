@@ -7,6 +7,7 @@ use std::time::{Duration, Instant};
 use anyhow::Context;
 use farfield_net::SessionOptions;
 use farfield_render::{Renderer, SplatStyle};
+use farfield_view::budget::BudgetSpec;
 use farfield_view::flythrough::{FlyJob, fly, write_csv};
 use farfield_view::frame_loop::Until;
 use farfield_view::path::CameraPath;
@@ -50,6 +51,10 @@ pub fn run(args: RenderArgs) -> anyhow::Result<()> {
         },
         cache_bytes: (args.cache_mib.max(1) << 20) as usize,
         timeout: Duration::from_secs_f64(args.timeout_s),
+        budget: BudgetSpec {
+            triangles: args.budget,
+            ms: args.budget_ms,
+        },
     };
     let mut renderer =
         Renderer::new_headless(job.width, job.height).context("starting the renderer")?;
@@ -139,6 +144,7 @@ fn fly_path(
         frames_dir: write_frames.then(|| out.join("frames")),
         settle: true,
         timeout: job.timeout,
+        budget: job.budget,
     };
     let (stats, settle) = fly(&mut viewer, renderer, &fly_job, started)?;
     write_csv(&out.join("frames.csv"), &stats)?;

@@ -9,6 +9,7 @@ use serde_json::json;
 
 use farfield_builder::cubes::{CubeOptions, build_cubes};
 use farfield_builder::import::{Params, load_inputs};
+use farfield_builder::plp::{PlpOptions, build_plp};
 use farfield_builder::{BuildOptions, Progress, build_spheres_reporting};
 use farfield_store::{check_target, write_atomic};
 use farfield_tools::meters::memory;
@@ -96,6 +97,21 @@ pub fn run(args: &BuildArgs) -> anyhow::Result<Report> {
                 .with_context(|| format!("building {}", args.inputs.join(" ")))?;
             let nodes = stats.nodes;
             (file, serde_json::to_value(stats)?, nodes, "cubes")
+        }
+        Kind::Plp => {
+            let options = PlpOptions {
+                leaf_fraction: args.leaf_fraction,
+                seed: args.seed,
+                page_bytes: args
+                    .page_bytes
+                    .unwrap_or(farfield_builder::plp::DEFAULT_PLP_PAGE_BYTES),
+                ..PlpOptions::default()
+            };
+            let (file, stats) = build_plp(&scene, &options)
+                .with_context(|| format!("building {}", args.inputs.join(" ")))?;
+            drop(scene);
+            let nodes = file.header.nodes;
+            (file, serde_json::to_value(stats)?, nodes, "plp")
         }
     };
     let seconds_build = build_started.elapsed().as_secs_f64();

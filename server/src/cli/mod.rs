@@ -48,11 +48,12 @@ pub struct BuildArgs {
     #[arg(long = "param", value_name = "KEY=VALUE")]
     pub params: Vec<String>,
     /// Upper bound on a page's bytes (default: 16 KiB for spheres, 64 KiB
-    /// for cubes).
+    /// for cubes, 32 KiB for plp).
     #[arg(long)]
     pub page_bytes: Option<usize>,
-    /// Which hierarchy: QSplat's bounding spheres, or the color-cube octree
-    /// of Chamberlain et al. with the geometry at its leaves.
+    /// Which hierarchy: QSplat's bounding spheres, the color-cube octree
+    /// of Chamberlain et al. with the geometry at its leaves, or PLP's
+    /// Delaunay tessellation (Klosowski and Silva) for budgeted rendering.
     #[arg(long, value_enum, default_value_t = Kind::Spheres)]
     pub kind: Kind,
     /// Cubes: samples per cube-face edge (16 = 4 x 4 pixels of 4 x 4 samples).
@@ -72,6 +73,13 @@ pub struct BuildArgs {
     /// criterion; larger means larger leaves).
     #[arg(long, default_value_t = farfield_builder::cubes::octree::CUBE_COST)]
     pub cube_cost: f64,
+    /// PLP: octree leaves stop once their side is under this fraction of
+    /// the bounding box's longest side (the paper's 5 %).
+    #[arg(long, default_value_t = 0.05)]
+    pub leaf_fraction: f64,
+    /// PLP: the seed of the leaf centres' random perturbation.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
     /// Print one JSON summary object on stdout and no progress bar.
     #[arg(long)]
     pub json: bool,
@@ -82,6 +90,7 @@ pub struct BuildArgs {
 pub enum Kind {
     Spheres,
     Cubes,
+    Plp,
 }
 
 #[derive(Debug, clap::Args)]

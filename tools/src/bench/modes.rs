@@ -15,7 +15,7 @@ use anyhow::{Context, bail};
 use farfield_protocol::camera::Camera;
 use farfield_protocol::file::HierarchyKind;
 use farfield_render::{Coverage, Kernel, Renderer, SplatStyle};
-use farfield_traverse::Registered;
+use farfield_traverse::{Budget, Registered};
 use farfield_view::frame_loop::{LastCut, draw_frame};
 use farfield_view::viewer::Viewer;
 
@@ -66,7 +66,7 @@ impl Mode {
         };
         Ok(Self::Traversal {
             kind,
-            cut: LastCut::default(),
+            cut: LastCut::of_kind(kind),
         })
     }
 
@@ -112,6 +112,7 @@ impl Mode {
         match self {
             Self::Traversal { kind, cut } => {
                 let (threshold, style) = hierarchy_settings(kind.name, kind.params, settings)?;
+                cut.budget = budget_setting(settings)?;
                 traversal_frame(viewer, renderer, camera, threshold, &style, cut)
             }
             Self::Geometry { reference } => geometry_frame(reference, renderer, camera),
@@ -177,10 +178,24 @@ pub fn hierarchy_settings(
                 }
             }
             "coverage" => style.coverage = value.parse::<Coverage>().map_err(anyhow::Error::msg)?,
+            // Read by `budget_setting`.
+            "budget" if params.contains(&"budget") => {}
             _ => bail!("mode {mode} takes {}, not {param}", params.join(" or ")),
         }
     }
     Ok((threshold, style))
+}
+
+/// The triangle budget `settings` give a budgeted mode (PLP): the last
+/// `budget` setting, or none.
+pub fn budget_setting(settings: &[(String, String)]) -> anyhow::Result<Budget> {
+    let mut budget = Budget::Unlimited;
+    for (param, value) in settings {
+        if param == "budget" {
+            budget = value.parse::<Budget>().map_err(anyhow::Error::msg)?;
+        }
+    }
+    Ok(budget)
 }
 
 /// Every triangle of the input, drawn once.

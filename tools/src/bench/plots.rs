@@ -185,6 +185,20 @@ fn chart<DB: DrawingBackend>(
 /// Plot size in pixels.
 const SIZE: (u32, u32) = (760, 480);
 
+/// One chart of named series written as an SVG file (the other benches'
+/// figures: PLP's per-frame curves).
+pub fn write_line_chart(
+    path: &Path,
+    title: &str,
+    x_desc: &str,
+    y_desc: &str,
+    series: &BTreeMap<String, Vec<(f64, f64)>>,
+) -> anyhow::Result<()> {
+    label_font()?;
+    let root = SVGBackend::new(path, SIZE).into_drawing_area();
+    chart(&root, title, x_desc, y_desc, series, false)
+}
+
 /// Writes every plot of [`ALL`] into `dir`, as SVG and as PNG.
 pub fn write_all(dir: &Path, rows: &[Row], progress: &[ProgressRow]) -> anyhow::Result<()> {
     label_font()?;

@@ -11,6 +11,20 @@
 //! - `gen:forest` (`forest.rs`): `trees` (1, 1..=1048576) instances of one
 //!   `gen:tree` on a square grid, for the color-cube paper's scaling
 //!   experiment. Params: `seed` (1), `trees`, `triangles` (50000).
+//! - `gen:city` (`city.rs`): the PLP paper's CITY, `grid` x `grid` closed,
+//!   furnished houses with doors and windows along streets, about 500 000
+//!   triangles by default, few of them visible from the street. Params:
+//!   `seed` (1), `grid` (16, 1..=200), `furniture` (5 items per house on
+//!   average, 0..=16), `segments` (12 sides per cylinder, 3..=64).
+//! - `gen:cars` (`cars.rs`): the PLP paper's 5CBEM, `cars` copies of one
+//!   car (a closed body shell with window openings around a dense V8
+//!   engine) in a row along x, about 810 000 triangles by default. Params:
+//!   `seed` (1), `cars` (5, 1..=1000), `detail` (1, 0.1..=8, scales every
+//!   tessellation count).
+//!
+//! `city` and `cars` come with camera paths (`paths.rs`, [`camera_path`]):
+//! a street-level walk and an orbit of the row, one keyframe per frame.
+//! Their closed shapes come from `shapes.rs`.
 //!
 //! Generators are the project's reproducible test inputs, so they are
 //! **deterministic**: the same name and params give bitwise the same
@@ -23,12 +37,18 @@
 //! accepted, never silently ignored: a typo in a benchmark's params must not
 //! quietly benchmark the default scene.
 
+mod cars;
+mod city;
 mod forest;
 mod island;
 mod noise;
+mod paths;
 mod rng;
+mod shapes;
 mod tree;
 mod trig;
+
+pub use paths::{PathKey, camera_path};
 
 use std::fmt::Display;
 use std::str::FromStr;
@@ -40,7 +60,7 @@ use crate::scene::Scene;
 pub const DEFAULT_SCENE: &str = "gen:island";
 
 /// Names accepted after `gen:`.
-pub const GENERATORS: [&str; 3] = ["tree", "island", "forest"];
+pub const GENERATORS: [&str; 5] = ["tree", "island", "forest", "city", "cars"];
 
 const TREE_KEYS: [&str; 2] = ["seed", "triangles"];
 const FOREST_KEYS: [&str; 3] = ["seed", "trees", "triangles"];
@@ -52,6 +72,8 @@ const ISLAND_KEYS: [&str; 6] = [
     "extent",
     "height",
 ];
+const CITY_KEYS: [&str; 4] = ["seed", "grid", "furniture", "segments"];
+const CARS_KEYS: [&str; 3] = ["seed", "cars", "detail"];
 
 /// Builds the procedural scene `name` (without the `gen:` prefix) from
 /// `params`; see the module docs for names and params.
@@ -100,14 +122,47 @@ pub fn generate(name: &str, params: &Params) -> Result<Scene, ImportError> {
             };
             Ok(island::island(&island))
         }
-        _ => Err(ImportError::Generator {
-            name: name.to_owned(),
-            message: format!(
-                "unknown generator (known: {})",
-                GENERATORS.map(|g| format!("gen:{g}")).join(", ")
-            ),
-        }),
+        "city" => Ok(city::city(&city_params(params)?)),
+        "cars" => Ok(cars::cars(&cars_params(params)?)),
+        _ => Err(unknown_generator(name)),
     }
+}
+
+/// The error for a name that is no generator, listing those there are.
+fn unknown_generator(name: &str) -> ImportError {
+    ImportError::Generator {
+        name: name.to_owned(),
+        message: format!(
+            "unknown generator (known: {})",
+            GENERATORS.map(|g| format!("gen:{g}")).join(", ")
+        ),
+    }
+}
+
+/// `gen:city`'s params, shared by the scene and its camera path.
+fn city_params(params: &Params) -> Result<city::CityParams, ImportError> {
+    let p = Reader::new("city", params, &CITY_KEYS)?;
+    Ok(city::CityParams {
+        seed: p.get("seed", 1u64)?,
+        grid: p.range("grid", city::DEFAULT_GRID, 1, city::MAX_GRID)?,
+        furniture: p.range("furniture", city::DEFAULT_FURNITURE, 0, city::MAX_FURNITURE)?,
+        segments: p.range("segments", city::DEFAULT_SEGMENTS, 3, 64)?,
+    })
+}
+
+/// `gen:cars`'s params, shared by the scene and its camera path.
+fn cars_params(params: &Params) -> Result<cars::CarsParams, ImportError> {
+    let p = Reader::new("cars", params, &CARS_KEYS)?;
+    Ok(cars::CarsParams {
+        seed: p.get("seed", 1u64)?,
+        cars: p.range("cars", cars::DEFAULT_CARS, 1, cars::MAX_CARS)?,
+        detail: p.range(
+            "detail",
+            cars::DEFAULT_DETAIL,
+            cars::MIN_DETAIL,
+            cars::MAX_DETAIL,
+        )?,
+    })
 }
 
 /// Reads and checks one generator's params, turning every problem into an
@@ -437,6 +492,306 @@ mod tests {
             assert!(face.z > 0.0);
             let avg: glam::Vec3 = t.iter().map(|&i| normals[i as usize]).sum();
             assert!(face.dot(avg.as_dvec3()) > 0.0);
+        }
+    }
+
+    fn triangles_of(g: &Geometry) -> &[[u32; 3]] {
+        match &g.primitives {
+            Primitives::Triangles(t) => t,
+            _ => panic!("not triangles"),
+        }
+    }
+
+    /// Smallest and largest corner of a geometry's positions.
+    fn bounds(g: &Geometry) -> (DVec3, DVec3) {
+        g.positions
+            .iter()
+            .fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(lo, hi), &p| {
+                (lo.min(p), hi.max(p))
+            })
+    }
+
+    fn within(n: u64, target: f64, name: &str) {
+        let off = (n as f64 - target).abs() / target;
+        assert!(
+            off <= 0.05,
+            "{name}: {n} triangles, {:.1}% off {target}",
+            off * 100.0
+        );
+    }
+
+    #[test]
+    fn city_and_cars_are_deterministic_and_seeded() {
+        for (name, p) in [
+            ("city", ["grid=3", "segments=5"]),
+            ("cars", ["cars=2", "detail=0.3"]),
+        ] {
+            let a = gen_ok(name, &p);
+            let b = gen_ok(name, &p);
+            assert_eq!(a, b, "{name}");
+            assert_eq!(fingerprint(&a), fingerprint(&b), "{name}");
+            let c = gen_ok(name, &[p[0], p[1], "seed=2"]);
+            assert_ne!(fingerprint(&a), fingerprint(&c), "{name}");
+            assert!(a.has_color(), "{name}");
+            assert!(a.geometries.iter().all(|g| g.normals.is_none()));
+        }
+    }
+
+    /// Pins the exact output of the PLP scenes, like [`output_is_pinned`];
+    /// update the constants from the failure message after a deliberate
+    /// change.
+    #[test]
+    fn city_and_cars_output_is_pinned() {
+        let city = gen_ok("city", &["grid=2", "seed=7"]);
+        let cars = gen_ok("cars", &["cars=2", "detail=0.3", "seed=7"]);
+        let paths = [path("city", &["grid=2"]), path("cars", &["cars=2"])];
+        let mut h = 0u64;
+        for keys in &paths {
+            for k in keys {
+                for x in [k.t, k.fov].iter().chain(&k.eye).chain(&k.target) {
+                    h = rng::hash(h, x.to_bits());
+                }
+            }
+        }
+        let got = (fingerprint(&city), fingerprint(&cars), h);
+        assert_eq!(
+            got,
+            (
+                0x4da2_eb49_6e75_251d,
+                0xc4c0_4133_66e3_3ac3,
+                0x21da_3101_81b6_764e
+            ),
+            "generator output changed: {got:#x?}"
+        );
+    }
+
+    #[test]
+    fn default_city_is_about_500k_triangles() {
+        let scene = gen_ok("city", &[]);
+        within(scene.instanced_primitive_count(), 500_000.0, "gen:city");
+        // The ground, then one geometry per house, each placed once as is.
+        assert_eq!(scene.geometries.len(), 1 + 16 * 16);
+        assert_eq!(scene.instances.len(), scene.geometries.len());
+        for (k, i) in scene.instances.iter().enumerate() {
+            assert_eq!(i.geometry, k);
+            assert_eq!(i.world_from_local, glam::DAffine3::IDENTITY);
+        }
+    }
+
+    #[test]
+    fn default_cars_are_about_810k_triangles() {
+        let scene = gen_ok("cars", &[]);
+        within(scene.instanced_primitive_count(), 810_000.0, "gen:cars");
+        assert_eq!(scene.geometries.len(), 1, "one shared car mesh");
+        assert_eq!(scene.instances.len(), 5);
+        let more = gen_ok("cars", &["cars=12", "detail=0.2"]);
+        assert_eq!(more.instances.len(), 12);
+    }
+
+    #[test]
+    fn houses_and_the_car_are_closed_outward_shapes() {
+        let city = gen_ok("city", &["grid=2"]);
+        assert_eq!(city.geometries.len(), 5);
+        for g in &city.geometries {
+            let parts = shapes::closed_parts(&g.positions, triangles_of(g));
+            let parts = parts.unwrap_or_else(|e| panic!("{}: {e}", g.name));
+            // A house: floor, roof, at least 16 wall pieces, furniture.
+            let least = if g.name.contains("house") { 20 } else { 1 };
+            assert!(parts >= least, "{}: {parts} parts", g.name);
+        }
+        let cars = gen_ok("cars", &["cars=1"]);
+        let car = &cars.geometries[0];
+        let parts = shapes::closed_parts(&car.positions, triangles_of(car));
+        assert!(parts.unwrap_or_else(|e| panic!("car: {e}")) > 100);
+    }
+
+    fn path(name: &str, pairs: &[&str]) -> Vec<PathKey> {
+        camera_path(name, &params(pairs))
+            .expect("valid params")
+            .expect("a path")
+    }
+
+    fn check_times(keys: &[PathKey], count: usize) {
+        assert_eq!(keys.len(), count);
+        assert_eq!(keys[0].t, 0.0);
+        for w in keys.windows(2) {
+            assert!(w[1].t > w[0].t);
+            assert!((w[1].t - w[0].t - 1.0 / 30.0).abs() < 1e-9);
+        }
+    }
+
+    #[test]
+    fn the_city_walk_stays_on_the_streets() {
+        for grid in [1, 2, 3, 6] {
+            let g = format!("grid={grid}");
+            let keys = path("city", &[&g]);
+            check_times(&keys, 160);
+            let scene = gen_ok("city", &[&g, "furniture=0"]);
+            let (lo, hi) = bounds(&scene.geometries[0]);
+            let houses: Vec<(DVec3, DVec3)> = scene.geometries[1..].iter().map(bounds).collect();
+            for k in &keys {
+                let eye = DVec3::from(k.eye);
+                assert!(
+                    eye.x > lo.x + 1.0 && eye.x < hi.x - 1.0,
+                    "grid {grid}: {eye}"
+                );
+                assert!(
+                    eye.y > lo.y + 1.0 && eye.y < hi.y - 1.0,
+                    "grid {grid}: {eye}"
+                );
+                assert!((eye.z - hi.z - 1.7).abs() < 1e-9, "grid {grid}: {eye}");
+                for (a, b) in &houses {
+                    let inside = eye.x > a.x - 1.0
+                        && eye.x < b.x + 1.0
+                        && eye.y > a.y - 1.0
+                        && eye.y < b.y + 1.0;
+                    assert!(!inside, "grid {grid}: {eye} in a house at {a}..{b}");
+                }
+                let gaze = DVec3::from(k.target) - eye;
+                assert!(gaze.length() > 1.0 && gaze.z < 0.0 && gaze.z > -0.1 * gaze.length());
+                assert_eq!(k.fov, 60.0);
+            }
+            // It walks: along x first, then along y after a turn.
+            let (a, m, z) = (
+                DVec3::from(keys[0].eye),
+                DVec3::from(keys[40].eye),
+                DVec3::from(keys[159].eye),
+            );
+            assert!(m.x - a.x > 3.0 && (m.y - a.y).abs() < 1e-9, "{a} {m}");
+            assert!(z.y - m.y > 8.0, "{m} {z}");
+            let step = |i: usize| DVec3::from(keys[i + 1].eye) - DVec3::from(keys[i].eye);
+            assert!(step(0).x > 0.0 && step(158).y > 0.0 && step(158).x.abs() < 1e-9);
+        }
+        // The default grid's walk is inside the default city too.
+        let (w, h) = city::extent(city::DEFAULT_GRID);
+        for k in path("city", &[]) {
+            assert!(k.eye[0] > 0.0 && k.eye[0] < w && k.eye[1] > 0.0 && k.eye[1] < h);
+        }
+        assert_eq!(path("city", &["seed=9"]), path("city", &[]));
+    }
+
+    #[test]
+    fn the_cars_orbit_frames_the_row_from_outside() {
+        for cars in [1, 5, 40] {
+            let c = format!("cars={cars}");
+            let keys = path("cars", &[&c]);
+            check_times(&keys, 200);
+            let scene = gen_ok("cars", &[&c, "detail=0.2"]);
+            let (lo, hi) = bounds(&scene.geometries[0]);
+            let boxes: Vec<(DVec3, DVec3)> = scene
+                .instances
+                .iter()
+                .map(|i| {
+                    let t = i.world_from_local;
+                    (t.transform_point3(lo), t.transform_point3(hi))
+                })
+                .collect();
+            let centre = DVec3::from(keys[0].target);
+            let row = (boxes[0].0 + boxes[cars - 1].1) * 0.5;
+            assert!((centre - row).abs().max_element() < 0.01, "{centre} {row}");
+            let ty = 22.5f64.to_radians().tan();
+            let tx = ty * paths::ASPECT;
+            for (n, k) in keys.iter().enumerate() {
+                let eye = DVec3::from(k.eye);
+                assert_eq!(k.fov, 45.0);
+                assert_eq!(DVec3::from(k.target), centre);
+                assert!(eye.z > centre.z + 0.5, "above the row");
+                for (a, b) in &boxes {
+                    assert!(
+                        !(eye.cmpge(*a).all() && eye.cmple(*b).all()),
+                        "{eye} in a car"
+                    );
+                }
+                // Every corner of every car in view, and the row filling it.
+                let forward = (centre - eye).normalize();
+                let right = forward.cross(DVec3::Z).normalize();
+                let up = right.cross(forward);
+                let mut fill: f64 = 0.0;
+                for (a, b) in &boxes {
+                    for corner in 0..8 {
+                        let pick =
+                            |bit: usize, a: f64, b: f64| if corner >> bit & 1 == 1 { b } else { a };
+                        let p = DVec3::new(pick(0, a.x, b.x), pick(1, a.y, b.y), pick(2, a.z, b.z))
+                            - eye;
+                        let z = p.dot(forward);
+                        let x = p.dot(right).abs() / (z * tx);
+                        let y = p.dot(up).abs() / (z * ty);
+                        assert!(
+                            z > 0.0 && x <= 1.0 && y <= 1.0,
+                            "key {n}: corner out of view"
+                        );
+                        fill = fill.max(x.max(y));
+                    }
+                }
+                assert!(fill > 0.85, "key {n}: the row fills {fill} of the view");
+            }
+            // Once round, counter-clockwise seen from above.
+            let side = |k: usize| DVec3::from(keys[k].eye) - centre;
+            assert!(side(50).y > 0.0 && side(150).y < 0.0 && side(0).x > 0.0 && side(100).x < 0.0);
+        }
+    }
+
+    #[test]
+    fn paths_exist_for_city_and_cars_only() {
+        for g in GENERATORS {
+            let has = camera_path(g, &Params::default()).expect("valid").is_some();
+            assert_eq!(has, g == "city" || g == "cars", "{g}");
+        }
+        assert!(camera_path("meadow", &Params::default()).is_err());
+        match camera_path("city", &params(&["gird=3"])) {
+            Err(ImportError::Generator { message, .. }) => {
+                assert!(
+                    message.contains("gird") && message.contains("furniture"),
+                    "{message}"
+                )
+            }
+            other => panic!("expected an error, got {other:?}"),
+        }
+        assert!(camera_path("cars", &params(&["cars=0"])).is_err());
+    }
+
+    #[test]
+    fn bad_city_and_cars_params_are_errors() {
+        let m = message("city", &["houses=4"]);
+        assert!(
+            m.contains("houses") && m.contains("grid") && m.contains("segments"),
+            "{m}"
+        );
+        let m = message("cars", &["copies=4"]);
+        assert!(
+            m.contains("copies") && m.contains("cars") && m.contains("detail"),
+            "{m}"
+        );
+        for bad in [
+            "grid=0",
+            "grid=201",
+            "grid=x",
+            "furniture=17",
+            "segments=2",
+            "segments=65",
+            "seed=-1",
+        ] {
+            let m = message("city", &[bad]);
+            let key = bad.split('=').next().unwrap_or_default();
+            assert!(
+                m.contains(key) && m.contains("gen:city takes"),
+                "{bad}: {m}"
+            );
+        }
+        for bad in [
+            "cars=0",
+            "cars=1001",
+            "detail=0.01",
+            "detail=9",
+            "detail=nan",
+            "cars=1.5",
+        ] {
+            let m = message("cars", &[bad]);
+            let key = bad.split('=').next().unwrap_or_default();
+            assert!(
+                m.contains(key) && m.contains("gen:cars takes"),
+                "{bad}: {m}"
+            );
         }
     }
 

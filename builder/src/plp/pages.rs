@@ -1,0 +1,249 @@
+//! Laying the tessellation out in pages: the skeleton alone in page 0 (one
+//! read after the header gives the whole traversal), then the cells in
+//! Morton order of their centroids, cut into pages of about `page_bytes`,
+//! so a page is a patch of space and the pages PLP asks for first are few.
+//! A cell larger than a page gets a page of its own.
+
+use std::collections::HashMap;
+
+use farfield_protocol::file::{AttributeFlags, FileHeader, HierarchyKind, PageEntry, place_pages};
+use farfield_protocol::page::{PageHeader, encode_page_with_payload};
+use farfield_protocol::plp_codec::{self, Cell, CellPage, NO_NEIGHBOUR, Skeleton, StoredTriangle};
+use glam::DVec3;
+
+use super::Triangles;
+use super::delaunay::{NONE, Tetrahedralization};
+use crate::PagedFile;
+
+/// What the header records besides the tessellation.
+#[derive(Debug, Clone, Copy)]
+pub struct LayoutInfo {
+    pub page_bytes: usize,
+    pub input_vertices: u64,
+    pub bounds_min: DVec3,
+    pub bounds_max: DVec3,
+    /// The enlarged box: the tessellation's hull.
+    pub box_min: DVec3,
+    pub box_max: DVec3,
+}
+
+/// The file and what laying it out counted.
+#[derive(Debug)]
+pub struct Laid {
+    pub file: PagedFile,
+    pub rho_max: u32,
+    /// Triangles stored over all pages (a triangle is stored once per page
+    /// holding a cell it meets).
+    pub stored_triangles: u64,
+}
+
+/// Writes the tessellation `t`, whose cell lists `cells_of` (per triangle)
+/// name its cells, as a paged file.
+pub fn lay_out(
+    t: &Tetrahedralization,
+    tris: &Triangles,
+    cells_of: &[Vec<u32>],
+    info: &LayoutInfo,
+) -> Laid {
+    // Cell -> its triangles, ascending.
+    let mut lists: Vec<Vec<u32>> = vec![Vec::new(); t.cells.len()];
+    for (tri, cells) in cells_of.iter().enumerate() {
+        for &c in cells {
+            lists[c as usize].push(tri as u32);
+        }
+    }
+    // Cells in Morton order of their centroids; `rank[old] = new`.
+    let (lo, hi) = (info.box_min, info.box_max);
+    let mut order: Vec<(u64, u32)> = t
+        .cells
+        .iter()
+        .enumerate()
+        .map(|(c, cell)| {
+            let centroid = cell.iter().map(|&v| t.points[v as usize]).sum::<DVec3>() / 4.0;
+            (morton((centroid - lo) / (hi - lo)), c as u32)
+        })
+        .collect();
+    order.sort_unstable();
+    let mut rank = vec![0u32; t.cells.len()];
+    for (new, &(_, old)) in order.iter().enumerate() {
+        rank[old as usize] = new as u32;
+    }
+    let cells: Vec<Cell> = order
+        .iter()
+        .map(|&(_, old)| Cell {
+            vertices: t.cells[old as usize],
+            neighbours: t.neighbours[old as usize].map(|n| {
+                if n == NONE {
+                    NO_NEIGHBOUR
+                } else {
+                    rank[n as usize]
+                }
+            }),
+            triangles: lists[old as usize].len() as u32,
+        })
+        .collect();
+    let rho_max = cells.iter().map(|c| c.triangles).max().unwrap_or(0).max(1);
+    let root_center = (lo + hi) * 0.5;
+    let skeleton = Skeleton {
+        vertices: t.points.clone(),
+        cells,
+        rho_max,
+        scene_triangles: tris.corners.len() as u64,
+        normals: Vec::new(),
+    };
+    let cell_count = skeleton.cells.len() as u64;
+    let mut pages = Vec::new();
+    let mut entries = Vec::new();
+    let mut push = |header: PageHeader, records: &[u8], payload: &[u8]| {
+        let (bytes, checksum) = encode_page_with_payload(&header, records, payload);
+        entries.push(PageEntry::of(&header, bytes.len(), checksum));
+        pages.push(bytes);
+    };
+    let mut root = (cell_count as u32).to_le_bytes().to_vec();
+    root.extend_from_slice(&0u32.to_le_bytes());
+    push(
+        PageHeader {
+            index: 0,
+            first_node: 0,
+            first_child: 1,
+            node_count: 1,
+            level_min: 0,
+            level_max: 0,
+        },
+        &root,
+        &skeleton.encode(root_center),
+    );
+    // Cut the cells into pages.
+    let mut stored = 0u64;
+    let mut index = 1u32;
+    let mut start = 0usize;
+    while start < order.len() {
+        let mut page = PageBuilder::default();
+        let mut end = start;
+        while end < order.len() {
+            let list = &lists[order[end].1 as usize];
+            if end > start && page.bytes_with(list) > info.page_bytes {
+                break;
+            }
+            page.add(list);
+            end += 1;
+        }
+        let cell_page = page.finish(tris);
+        stored += cell_page.triangles.len() as u64;
+        let (records, payload) = cell_page.encode();
+        push(
+            PageHeader {
+                index,
+                first_node: 1 + start as u64,
+                first_child: 1 + cell_count,
+                node_count: (end - start) as u32,
+                level_min: 1,
+                level_max: 1,
+            },
+            &records,
+            &payload,
+        );
+        index += 1;
+        start = end;
+    }
+    place_pages(&mut entries);
+    let file = PagedFile {
+        header: FileHeader {
+            kind: HierarchyKind::Plp,
+            attributes: AttributeFlags {
+                color: true,
+                normals: false,
+                leaf_geometry: true,
+            },
+            node_bytes: plp_codec::NODE_BYTES as u32,
+            cluster: 0,
+            levels: 2,
+            nodes: 1 + cell_count,
+            leaves: cell_count,
+            input_vertices: info.input_vertices,
+            bounds_min: info.bounds_min,
+            bounds_max: info.bounds_max,
+            root_center,
+            root_radius: (hi - lo).length() * 0.5,
+            pages: entries,
+        },
+        pages,
+        leaf_sources: Vec::new(),
+    };
+    Laid {
+        file,
+        rho_max,
+        stored_triangles: stored,
+    }
+}
+
+/// One page's cells as they are added.
+#[derive(Debug, Default)]
+struct PageBuilder {
+    /// Scene triangle id -> index among the page's triangles.
+    local: HashMap<u32, u32>,
+    ids: Vec<u32>,
+    lists: Vec<u32>,
+    starts: Vec<u32>,
+}
+
+impl PageBuilder {
+    /// The page's bytes if a cell with triangles `list` were added.
+    fn bytes_with(&self, list: &[u32]) -> usize {
+        let new = list.iter().filter(|t| !self.local.contains_key(t)).count();
+        let cells = self.starts.len() + 1;
+        farfield_protocol::page::PAGE_HEADER_BYTES
+            + 4
+            + cells * plp_codec::NODE_BYTES
+            + 28
+            + (self.ids.len() + new) * plp_codec::TRIANGLE_BYTES
+            + (self.lists.len() + list.len()) * 4
+    }
+
+    fn add(&mut self, list: &[u32]) {
+        self.starts.push(self.lists.len() as u32);
+        for &t in list {
+            let next = self.ids.len() as u32;
+            let local = *self.local.entry(t).or_insert(next);
+            if local == next {
+                self.ids.push(t);
+            }
+            self.lists.push(local);
+        }
+    }
+
+    /// The page, its corners relative to the lowest corner among them.
+    fn finish(mut self, tris: &Triangles) -> CellPage {
+        self.starts.push(self.lists.len() as u32);
+        let anchor = self
+            .ids
+            .iter()
+            .flat_map(|&t| tris.corners[t as usize])
+            .fold(DVec3::INFINITY, DVec3::min);
+        let anchor = if anchor.is_finite() {
+            anchor
+        } else {
+            DVec3::ZERO
+        };
+        let triangles = self
+            .ids
+            .iter()
+            .map(|&t| StoredTriangle {
+                id: t,
+                corners: tris.corners[t as usize].map(|p| (p - anchor).as_vec3().to_array()),
+                rgba: tris.rgba[t as usize],
+            })
+            .collect();
+        CellPage {
+            anchor,
+            triangles,
+            lists: self.lists,
+            starts: self.starts,
+        }
+    }
+}
+
+/// A 63-bit Morton code of a point in the unit cube.
+fn morton(p: DVec3) -> u64 {
+    super::delaunay::morton(p)
+}

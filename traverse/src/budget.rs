@@ -1,0 +1,89 @@
+//! A frame's budget (PLP, section 3): how many triangles it may draw, as a
+//! count or as a share of the scene. A budget in milliseconds is turned
+//! into a count each frame by whoever measures the draw rate
+//! (`farfield_view::budget`), since a traversal neither draws nor times.
+
+use std::fmt;
+use std::str::FromStr;
+
+/// How many triangles one frame may draw.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub enum Budget {
+    /// Everything.
+    #[default]
+    Unlimited,
+    /// At most this many.
+    Triangles(u64),
+    /// At most this share (0..=1) of the scene's triangles, rounded up.
+    Fraction(f64),
+}
+
+impl Budget {
+    /// The budget in triangles for a scene of `scene` triangles.
+    pub fn triangles(self, scene: u64) -> u64 {
+        match self {
+            Self::Unlimited => u64::MAX,
+            Self::Triangles(n) => n,
+            Self::Fraction(f) if f >= 1.0 => u64::MAX,
+            // NaN and negatives draw nothing.
+            Self::Fraction(f) if f.is_nan() || f <= 0.0 => 0,
+            Self::Fraction(f) => (f * scene as f64).ceil() as u64,
+        }
+    }
+}
+
+impl FromStr for Budget {
+    type Err = String;
+
+    /// `5%` (a share of the scene), `20000` (triangles) or `all`.
+    fn from_str(s: &str) -> Result<Self, String> {
+        let s = s.trim();
+        if s == "all" {
+            return Ok(Self::Unlimited);
+        }
+        if let Some(p) = s.strip_suffix('%') {
+            return match p.trim().parse::<f64>() {
+                Ok(v) if v.is_finite() && v >= 0.0 => Ok(Self::Fraction(v / 100.0)),
+                _ => Err(format!("budget {s} is not a non-negative percentage")),
+            };
+        }
+        s.parse::<u64>()
+            .map(Self::Triangles)
+            .map_err(|_| format!("budget {s} is not a triangle count, a percentage (5%) or all"))
+    }
+}
+
+impl fmt::Display for Budget {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Self::Unlimited => write!(f, "all"),
+            Self::Triangles(n) => write!(f, "{n}"),
+            Self::Fraction(x) => write!(f, "{}%", x * 100.0),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn budgets_parse_and_resolve() {
+        let b: Budget = "5%".parse().expect("percent");
+        assert_eq!(b, Budget::Fraction(0.05));
+        assert_eq!(b.triangles(500_000), 25_000);
+        assert_eq!(b.triangles(1), 1, "a share rounds up");
+        assert_eq!("0%".parse::<Budget>().map(|b| b.triangles(100)), Ok(0));
+        assert_eq!(
+            "100%".parse::<Budget>().map(|b| b.triangles(7)),
+            Ok(u64::MAX)
+        );
+        assert_eq!("1200".parse::<Budget>(), Ok(Budget::Triangles(1200)));
+        assert_eq!("all".parse::<Budget>(), Ok(Budget::Unlimited));
+        for bad in ["-1%", "x", "1.5", "nan%", ""] {
+            assert!(bad.parse::<Budget>().is_err(), "{bad}");
+        }
+        assert_eq!(Budget::Fraction(f64::NAN).triangles(10), 0);
+        assert_eq!(Budget::Fraction(0.05).to_string(), "5%");
+    }
+}
