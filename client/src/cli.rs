@@ -286,6 +286,9 @@ pub struct BenchPlpArgs {
     /// Every Nth keyframe of the path.
     #[arg(long, default_value_t = 1)]
     pub stride: usize,
+    /// PLP's non-star-shaped penalty, in full cells of solidity.
+    #[arg(long, default_value_t = farfield_traverse::plp::DEFAULT_STAR_PENALTY)]
+    pub star_penalty: f64,
     /// Print the paper's Table 1 row beside ours: `city` or `cars`.
     #[arg(long, value_parser = ["city", "cars"])]
     pub paper: Option<String>,
@@ -361,7 +364,7 @@ pub struct RenderArgs {
     pub budget: farfield_traverse::Budget,
     /// PLP files: a frame time in milliseconds instead (time-critical: the
     /// triangle budget follows the measured draw rate).
-    #[arg(long, conflicts_with = "budget")]
+    #[arg(long, conflicts_with = "budget", value_parser = parse_positive_ms)]
     pub budget_ms: Option<f64>,
     /// Client page cache, MiB.
     #[arg(long, default_value_t = 1024)]
@@ -433,4 +436,13 @@ fn view_job(args: ViewArgs) -> anyhow::Result<commands::view::ViewJob> {
         screenshot_when_refined: args.screenshot_when_refined,
         flight_seconds: args.flight,
     })
+}
+
+/// A frame time in milliseconds: finite and above 0 (a 0 ms budget would
+/// draw nothing, silently).
+fn parse_positive_ms(s: &str) -> Result<f64, String> {
+    match s.parse::<f64>() {
+        Ok(ms) if ms.is_finite() && ms > 0.0 => Ok(ms),
+        _ => Err(format!("{s} is not a positive number of milliseconds")),
+    }
 }

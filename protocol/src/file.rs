@@ -339,7 +339,11 @@ impl FileHeader {
             HierarchyKind::Plp
                 if self.cluster != 0
                     || self.nodes != self.leaves + 1
-                    || self.pages.first().is_some_and(|p| p.node_count != 1) =>
+                    || self.levels != 2
+                    || self
+                        .pages
+                        .first()
+                        .is_some_and(|p| p.node_count != 1 || p.first_child != 1) =>
             {
                 return bad(format!(
                     "a PLP tessellation is a root alone in page 0 and its cells after ({} nodes, {} leaves, cluster {})",

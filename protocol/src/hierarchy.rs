@@ -283,6 +283,12 @@ impl Hierarchy {
             let mut word = [0u8; 4];
             word.copy_from_slice(page.records.get(..4).ok_or_else(|| bad("no root".into()))?);
             let cells = u32::from_le_bytes(word);
+            if u64::from(cells) != self.header.leaves || page.records.get(4..8) != Some(&[0; 4]) {
+                return Err(bad(format!(
+                    "the root has {cells} cells, the directory {}",
+                    self.header.leaves
+                )));
+            }
             let skeleton =
                 Skeleton::decode(page.payload, self.header.root_center, self.header.leaves)
                     .map_err(|e| bad(format!("skeleton: {e}")))?;

@@ -160,11 +160,11 @@ fn budget_zero_draws_nothing_and_a_whole_budget_draws_everything() {
         "budget 0 drew {}",
         zero.triangles.len()
     );
-    let zero_share = walk(&h, &front(), Budget::Fraction(0.0), Order::Solidity);
+    let zero_share = walk(&h, &front(), Budget::Percent(0.0), Order::Solidity);
     assert!(zero_share.triangles.is_empty());
     for whole in [
         Budget::Triangles(n),
-        Budget::Fraction(1.0),
+        Budget::Percent(100.0),
         Budget::Triangles(n * 10),
     ] {
         let cut = walk(&h, &front(), whole, Order::Solidity);
@@ -631,16 +631,17 @@ fn bench_plp_reports_coverage_wrong_pixels_and_the_papers_row() {
         file: file_path,
         path,
         budgets: vec![
-            Budget::Fraction(0.02),
-            Budget::Fraction(0.1),
+            Budget::Percent(2.0),
+            Budget::Percent(10.0),
             Budget::Unlimited,
         ],
-        centroid_budget: Budget::Fraction(0.1),
+        centroid_budget: Budget::Percent(10.0),
         width: 160,
         height: 120,
         repeats: 1,
         stride: 1,
         paper: Some(PaperRow::city()),
+        star_penalty: farfield_traverse::plp::DEFAULT_STAR_PENALTY,
     };
     let report = run(&job, &mut renderer).expect("bench runs");
     assert_eq!(report.frames.len(), 3);

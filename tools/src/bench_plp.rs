@@ -42,6 +42,8 @@ pub struct PlpBenchJob {
     pub stride: usize,
     /// The paper's coverage at the same budgets, for the table.
     pub paper: Option<PaperRow>,
+    /// PLP's non-star-shaped penalty (`farfield_traverse::plp::PlpOptions`).
+    pub star_penalty: f64,
 }
 
 /// Table 1's row and the worst wrong pixels for one of the paper's models.
@@ -176,7 +178,7 @@ pub fn run(job: &PlpBenchJob, renderer: &mut Renderer) -> anyhow::Result<PlpBenc
                 &h,
                 renderer,
                 &camera,
-                (Order::Solidity, Budget::Unlimited),
+                (Order::Solidity, Budget::Unlimited, job.star_penalty),
                 (&mut state, &mut cut),
                 &mut vertices,
             )?;
@@ -197,7 +199,7 @@ pub fn run(job: &PlpBenchJob, renderer: &mut Renderer) -> anyhow::Result<PlpBenc
                     &h,
                     renderer,
                     &camera,
-                    (*order, *budget),
+                    (*order, *budget, job.star_penalty),
                     (&mut state, &mut cut),
                     &mut vertices,
                 )?;
@@ -290,7 +292,7 @@ fn draw(
     h: &Hierarchy,
     renderer: &mut Renderer,
     camera: &Camera,
-    (order, budget): (Order, Budget),
+    (order, budget, star_penalty): (Order, Budget, f64),
     (state, cut): (&mut PlpState, &mut PlpCut),
     vertices: &mut Vec<GpuVertex>,
 ) -> anyhow::Result<(Vec<u8>, f64, f64)> {
@@ -298,6 +300,7 @@ fn draw(
     let options = PlpOptions {
         budget,
         order,
+        star_penalty,
         ..PlpOptions::default()
     };
     traverse_plp_into(h, camera, &options, state, cut);

@@ -14,8 +14,10 @@ pub enum Budget {
     Unlimited,
     /// At most this many.
     Triangles(u64),
-    /// At most this share (0..=1) of the scene's triangles, rounded up.
-    Fraction(f64),
+    /// At most this percentage (0..=100) of the scene's triangles, rounded
+    /// up. Kept as a percentage so `7%` of 100 is 7, not the 8 that
+    /// 0.07 * 100 = 7.000000000000001 would round up to.
+    Percent(f64),
 }
 
 impl Budget {
@@ -24,10 +26,11 @@ impl Budget {
         match self {
             Self::Unlimited => u64::MAX,
             Self::Triangles(n) => n,
-            Self::Fraction(f) if f >= 1.0 => u64::MAX,
+            Self::Percent(p) if p >= 100.0 => u64::MAX,
             // NaN and negatives draw nothing.
-            Self::Fraction(f) if f.is_nan() || f <= 0.0 => 0,
-            Self::Fraction(f) => (f * scene as f64).ceil() as u64,
+            Self::Percent(p) if p.is_nan() || p <= 0.0 => 0,
+            // p * scene is exact for whole percentages (scenes under 2^53).
+            Self::Percent(p) => (p * scene as f64 / 100.0).ceil() as u64,
         }
     }
 }
@@ -43,7 +46,7 @@ impl FromStr for Budget {
         }
         if let Some(p) = s.strip_suffix('%') {
             return match p.trim().parse::<f64>() {
-                Ok(v) if v.is_finite() && v >= 0.0 => Ok(Self::Fraction(v / 100.0)),
+                Ok(v) if v.is_finite() && v >= 0.0 => Ok(Self::Percent(v)),
                 _ => Err(format!("budget {s} is not a non-negative percentage")),
             };
         }
@@ -58,7 +61,7 @@ impl fmt::Display for Budget {
         match self {
             Self::Unlimited => write!(f, "all"),
             Self::Triangles(n) => write!(f, "{n}"),
-            Self::Fraction(x) => write!(f, "{}%", x * 100.0),
+            Self::Percent(p) => write!(f, "{p}%"),
         }
     }
 }
@@ -70,7 +73,7 @@ mod tests {
     #[test]
     fn budgets_parse_and_resolve() {
         let b: Budget = "5%".parse().expect("percent");
-        assert_eq!(b, Budget::Fraction(0.05));
+        assert_eq!(b, Budget::Percent(5.0));
         assert_eq!(b.triangles(500_000), 25_000);
         assert_eq!(b.triangles(1), 1, "a share rounds up");
         assert_eq!("0%".parse::<Budget>().map(|b| b.triangles(100)), Ok(0));
@@ -83,7 +86,13 @@ mod tests {
         for bad in ["-1%", "x", "1.5", "nan%", ""] {
             assert!(bad.parse::<Budget>().is_err(), "{bad}");
         }
-        assert_eq!(Budget::Fraction(f64::NAN).triangles(10), 0);
-        assert_eq!(Budget::Fraction(0.05).to_string(), "5%");
+        assert_eq!(Budget::Percent(f64::NAN).triangles(10), 0);
+        assert_eq!(Budget::Percent(5.0).to_string(), "5%");
+        // Shares whose fraction does not round-trip through binary.
+        for (share, scene, expected) in [("7%", 100, 7), ("14%", 50, 7), ("28%", 200, 56)] {
+            let b: Budget = share.parse().expect("percent");
+            assert_eq!(b.triangles(scene), expected, "{share} of {scene}");
+            assert_eq!(b.to_string(), share);
+        }
     }
 }

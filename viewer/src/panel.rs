@@ -45,7 +45,7 @@ impl Settings {
         if self.plp_budget_percent >= 100.0 {
             farfield_traverse::Budget::Unlimited
         } else {
-            farfield_traverse::Budget::Fraction(self.plp_budget_percent.max(0.0) / 100.0)
+            farfield_traverse::Budget::Percent(self.plp_budget_percent.max(0.0))
         }
     }
 

@@ -23,24 +23,26 @@ pub fn assign(t: &Tetrahedralization, triangles: &[[DVec3; 3]]) -> Result<Vec<Ve
         .par_chunks(CHUNK)
         .map(|chunk| {
             let mut last = 0u32;
-            let mut seen: Vec<u32> = Vec::new();
+            // Per cell, the triangle (numbered from 1 in this chunk) that
+            // last looked at it: a large triangle meets thousands of cells.
+            let mut seen = vec![0u32; t.cells.len()];
             let mut out = Vec::with_capacity(chunk.len());
-            for tri in chunk {
+            for (k, tri) in chunk.iter().enumerate() {
+                let mark = k as u32 + 1;
                 let centroid = (tri[0] + tri[1] + tri[2]) / 3.0;
                 let start = locate(t, centroid, last)?;
                 last = start;
                 let mut cells = vec![start];
-                seen.clear();
-                seen.push(start);
-                let mut k = 0;
-                while k < cells.len() {
-                    let c = cells[k];
-                    k += 1;
+                seen[start as usize] = mark;
+                let mut next = 0;
+                while next < cells.len() {
+                    let c = cells[next];
+                    next += 1;
                     for &n in &t.neighbours[c as usize] {
-                        if n == NONE || seen.contains(&n) {
+                        if n == NONE || seen[n as usize] == mark {
                             continue;
                         }
-                        seen.push(n);
+                        seen[n as usize] = mark;
                         if meets(t, n, tri) {
                             cells.push(n);
                         }

@@ -24,6 +24,10 @@ use crate::scene::Scene;
 /// Default page size: a cell's triangles are larger than a sphere node.
 pub const DEFAULT_PLP_PAGE_BYTES: usize = 32 * 1024;
 
+/// The most octree leaves (tessellation vertices) a build accepts: the
+/// paper's scenes need tens of thousands.
+pub const MAX_LEAVES: usize = 4 << 20;
+
 /// Knobs of a PLP build.
 #[derive(Debug, Clone, Copy, serde::Serialize)]
 pub struct PlpOptions {
@@ -119,9 +123,12 @@ pub fn build_plp(scene: &Scene, options: &PlpOptions) -> Result<(PagedFile, PlpS
     let fraction_ok = options.leaf_fraction.is_finite()
         && options.leaf_fraction > 0.0
         && options.leaf_fraction <= 1.0;
+    // Below 1/1024 an octree over a dense scene has more leaves than a
+    // tessellation for budgeting needs (and the Delaunay step the memory).
+    let fraction_ok = fraction_ok && options.leaf_fraction >= 1.0 / 1024.0;
     if !fraction_ok {
         return Err(BuildError::Invalid(format!(
-            "leaf fraction {} is not in (0, 1]",
+            "leaf fraction {} is not in [1/1024, 1]",
             options.leaf_fraction
         )));
     }
@@ -166,14 +173,27 @@ pub fn build_plp(scene: &Scene, options: &PlpOptions) -> Result<(PagedFile, PlpS
         options.seed,
     );
     drop(vertices);
+    if leaves.centres.len() > MAX_LEAVES {
+        return Err(BuildError::Invalid(format!(
+            "the octree has {} leaves, more than {MAX_LEAVES}: raise --leaf-fraction",
+            leaves.centres.len()
+        )));
+    }
     let seconds_octree = started.elapsed().as_secs_f64();
 
     let started = Instant::now();
     // The enlarged box holds the octree's cube (and so every jittered
     // centre) with a margin, so the hull holds every primitive.
     let grow = side * (0.5 + options.margin);
-    let (box_min, box_max) = (centre - DVec3::splat(grow), centre + DVec3::splat(grow));
-    let tets = delaunay::tetrahedralize(box_min, box_max, &leaves.centres)
+    // The file stores vertices as f32 offsets from the centre: tetrahedralize
+    // exactly those, so no cell can flip (or flatten) when it is stored.
+    let stored = |p: DVec3| centre + (p - centre).as_vec3().as_dvec3();
+    let (box_min, box_max) = (
+        stored(centre - DVec3::splat(grow)),
+        stored(centre + DVec3::splat(grow)),
+    );
+    let centres: Vec<DVec3> = leaves.centres.iter().map(|&p| stored(p)).collect();
+    let tets = delaunay::tetrahedralize(box_min, box_max, &centres)
         .map_err(|e| BuildError::Invalid(format!("tetrahedralization: {e}")))?;
     let seconds_delaunay = started.elapsed().as_secs_f64();
 
@@ -194,6 +214,7 @@ pub fn build_plp(scene: &Scene, options: &PlpOptions) -> Result<(PagedFile, PlpS
             bounds_max: hi,
             box_min,
             box_max,
+            root_center: centre,
         },
     );
     let assignments: usize = cells_of.iter().map(Vec::len).sum();

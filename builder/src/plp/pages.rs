@@ -25,6 +25,9 @@ pub struct LayoutInfo {
     /// The enlarged box: the tessellation's hull.
     pub box_min: DVec3,
     pub box_max: DVec3,
+    /// What the skeleton's f32 positions are relative to (the builder
+    /// rounded every vertex to exactly that).
+    pub root_center: DVec3,
 }
 
 /// The file and what laying it out counted.
@@ -83,7 +86,7 @@ pub fn lay_out(
         })
         .collect();
     let rho_max = cells.iter().map(|c| c.triangles).max().unwrap_or(0).max(1);
-    let root_center = (lo + hi) * 0.5;
+    let root_center = info.root_center;
     let skeleton = Skeleton {
         vertices: t.points.clone(),
         cells,

@@ -113,6 +113,7 @@ pub fn bench_plp(args: BenchPlpArgs) -> anyhow::Result<()> {
         height: args.size.1,
         repeats: args.repeats,
         stride: args.stride,
+        star_penalty: args.star_penalty,
         paper: match args.paper.as_deref() {
             Some("city") => Some(PaperRow::city()),
             Some("cars") => Some(PaperRow::cars()),
