@@ -29,12 +29,12 @@ pub const NO_NEIGHBOUR: u32 = u32::MAX;
 /// Bytes of one stored triangle: id, nine f32 coordinates, RGBA.
 pub const TRIANGLE_BYTES: usize = 4 + 36 + 4;
 /// Bytes of one stored cell in the skeleton.
-pub const CELL_BYTES: usize = 9 * 4;
+pub const CELL_BYTES: usize = 10 * 4;
 /// Bytes before the skeleton's vertices.
 const SKELETON_HEADER_BYTES: usize = 24;
 
 /// One Delaunay cell as stored.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Cell {
     /// Indices into [`Skeleton::vertices`], positively oriented:
     /// `orient3d(v0, v1, v2, v3) > 0`.
@@ -44,6 +44,11 @@ pub struct Cell {
     pub neighbours: [u32; 4],
     /// `|c|`: triangles assigned to the cell (contained or crossing).
     pub triangles: u32,
+    /// The assigned triangles' area over the cell's volume to the 2/3: about
+    /// how many times they could cover the cell's cross-section (a wall
+    /// through the cell is about 1 or more, empty space 0). The area-based
+    /// solidity reads it; PLP's own reads `triangles`.
+    pub coverage: f32,
 }
 
 /// The whole tessellation, decoded.
@@ -119,6 +124,7 @@ impl Skeleton {
             {
                 out.extend_from_slice(&v.to_le_bytes());
             }
+            out.extend_from_slice(&cell.coverage.to_le_bytes());
         }
         out
     }
@@ -164,10 +170,17 @@ impl Skeleton {
             for x in &mut w {
                 *x = r.u32()?;
             }
+            let coverage = f32::from_bits(r.u32()?);
+            if !(coverage.is_finite() && coverage >= 0.0) {
+                return Err(format!(
+                    "cell {i}: coverage {coverage} is not a finite non-negative number"
+                ));
+            }
             let cell = Cell {
                 vertices: [w[0], w[1], w[2], w[3]],
                 neighbours: [w[4], w[5], w[6], w[7]],
                 triangles: w[8],
+                coverage,
             };
             if cell.vertices.iter().any(|&v| v as usize >= vertex_count) {
                 return Err(format!("cell {i}: a vertex index is out of range"));
@@ -405,11 +418,13 @@ mod tests {
                 vertices: [0, 1, 2, 3],
                 neighbours: [1, NO_NEIGHBOUR, NO_NEIGHBOUR, NO_NEIGHBOUR],
                 triangles: 3,
+                coverage: 0.5,
             },
             Cell {
                 vertices: [4, 1, 3, 2],
                 neighbours: [0, NO_NEIGHBOUR, NO_NEIGHBOUR, NO_NEIGHBOUR],
                 triangles: 1,
+                coverage: 2.0,
             },
         ];
         let normals = cells
@@ -472,9 +487,12 @@ mod tests {
         let mut rho = s.clone();
         rho.rho_max = 2;
         assert!(Skeleton::decode(&rho.encode(DVec3::ZERO), DVec3::ZERO, 2).is_err());
-        let mut nan = s;
+        let mut nan = s.clone();
         nan.vertices[0].x = f64::NAN;
         assert!(Skeleton::decode(&nan.encode(DVec3::ZERO), DVec3::ZERO, 2).is_err());
+        let mut negative = s;
+        negative.cells[0].coverage = -1.0;
+        assert!(Skeleton::decode(&negative.encode(DVec3::ZERO), DVec3::ZERO, 2).is_err());
     }
 
     #[test]
@@ -484,6 +502,7 @@ mod tests {
             vertices: [0, 1, 2, 3],
             neighbours: [NO_NEIGHBOUR; 4],
             triangles: 0,
+            coverage: 0.0,
         };
         // Face 3 is (0, 2, 1): three collinear points.
         assert_eq!(Skeleton::face_normal(&vertices, &cell, 3), DVec3::ZERO);

@@ -9,7 +9,9 @@ use farfield_protocol::camera::Camera;
 use farfield_protocol::hierarchy::{Hierarchy, PlpPage};
 use farfield_protocol::plp_codec::face_corners;
 use farfield_traverse::Budget;
-use farfield_traverse::plp::{Order, PlpCut, PlpOptions as Walk, PlpState, traverse_plp_into};
+use farfield_traverse::plp::{
+    Order, PlpCut, PlpOptions as Walk, PlpState, Solidity, traverse_plp_into,
+};
 use glam::{DAffine3, DVec3};
 
 use crate::resident;
@@ -87,10 +89,21 @@ fn front() -> Camera {
 }
 
 fn walk(h: &Hierarchy, camera: &Camera, budget: Budget, order: Order) -> PlpCut {
+    walk_with(h, camera, budget, order, Solidity::Count)
+}
+
+fn walk_with(
+    h: &Hierarchy,
+    camera: &Camera,
+    budget: Budget,
+    order: Order,
+    solidity: Solidity,
+) -> PlpCut {
     let mut cut = PlpCut::default();
     let options = Walk {
         budget,
         order,
+        solidity,
         ..Walk::default()
     };
     traverse_plp_into(h, camera, &options, &mut PlpState::default(), &mut cut);
@@ -642,6 +655,7 @@ fn bench_plp_reports_coverage_wrong_pixels_and_the_papers_row() {
         stride: 1,
         paper: Some(PaperRow::city()),
         star_penalty: farfield_traverse::plp::DEFAULT_STAR_PENALTY,
+        solidity: Default::default(),
     };
     let report = run(&job, &mut renderer).expect("bench runs");
     assert_eq!(report.frames.len(), 3);
@@ -670,4 +684,48 @@ fn bench_plp_reports_coverage_wrong_pixels_and_the_papers_row() {
     assert_eq!(frames_csv(&report).lines().count(), 4);
     farfield_tools::bench_plp::write_figures(&report, &dir).expect("figures");
     assert!(dir.join("visible.svg").exists() && dir.join("frame_time.svg").exists());
+}
+
+#[test]
+fn the_coverage_solidity_sees_walls_and_keeps_the_budget() {
+    let file = build(&rows(), &small_pages());
+    let h = resident(&file);
+    let sk = h.plp_skeleton().expect("skeleton");
+    // Empty cells cover nothing; a cell a box passes through is covered.
+    for c in &sk.cells {
+        assert!(c.coverage.is_finite() && c.coverage >= 0.0);
+        assert_eq!(c.triangles == 0, c.coverage == 0.0, "{c:?}");
+    }
+    assert!(
+        sk.cells.iter().any(|c| c.coverage >= 1.0),
+        "no cell is covered"
+    );
+    let full = walk(&h, &front(), Budget::Unlimited, Order::Solidity);
+    let same = walk_with(
+        &h,
+        &front(),
+        Budget::Unlimited,
+        Order::Solidity,
+        Solidity::Coverage,
+    );
+    assert_eq!(
+        ids(&same),
+        ids(&full),
+        "an unlimited budget draws the same set"
+    );
+    for k in [0, 5, 60] {
+        let cut = walk_with(
+            &h,
+            &front(),
+            Budget::Triangles(k),
+            Order::Solidity,
+            Solidity::Coverage,
+        );
+        assert_eq!(
+            cut.triangles.len() as u64,
+            k.min(full.triangles.len() as u64)
+        );
+    }
+    assert_eq!("coverage".parse::<Solidity>(), Ok(Solidity::Coverage));
+    assert!("area".parse::<Solidity>().is_err());
 }

@@ -17,7 +17,7 @@ use farfield_protocol::file::HierarchyKind;
 use farfield_protocol::hierarchy::Hierarchy;
 use farfield_render::{Coverage, GpuVertex, Renderer, pack_plp, visible_ids};
 use farfield_traverse::Budget;
-use farfield_traverse::plp::{Order, PlpCut, PlpOptions, PlpState, traverse_plp_into};
+use farfield_traverse::plp::{Order, PlpCut, PlpOptions, PlpState, Solidity, traverse_plp_into};
 use farfield_view::path::CameraPath;
 use serde::Serialize;
 
@@ -44,6 +44,8 @@ pub struct PlpBenchJob {
     pub paper: Option<PaperRow>,
     /// PLP's non-star-shaped penalty (`farfield_traverse::plp::PlpOptions`).
     pub star_penalty: f64,
+    /// What a projected cell passes on: the paper's count, or coverage.
+    pub solidity: Solidity,
 }
 
 /// Table 1's row and the worst wrong pixels for one of the paper's models.
@@ -178,7 +180,12 @@ pub fn run(job: &PlpBenchJob, renderer: &mut Renderer) -> anyhow::Result<PlpBenc
                 &h,
                 renderer,
                 &camera,
-                (Order::Solidity, Budget::Unlimited, job.star_penalty),
+                (
+                    Order::Solidity,
+                    Budget::Unlimited,
+                    job.star_penalty,
+                    job.solidity,
+                ),
                 (&mut state, &mut cut),
                 &mut vertices,
             )?;
@@ -199,7 +206,7 @@ pub fn run(job: &PlpBenchJob, renderer: &mut Renderer) -> anyhow::Result<PlpBenc
                     &h,
                     renderer,
                     &camera,
-                    (*order, *budget, job.star_penalty),
+                    (*order, *budget, job.star_penalty, job.solidity),
                     (&mut state, &mut cut),
                     &mut vertices,
                 )?;
@@ -292,7 +299,7 @@ fn draw(
     h: &Hierarchy,
     renderer: &mut Renderer,
     camera: &Camera,
-    (order, budget, star_penalty): (Order, Budget, f64),
+    (order, budget, star_penalty, solidity): (Order, Budget, f64, Solidity),
     (state, cut): (&mut PlpState, &mut PlpCut),
     vertices: &mut Vec<GpuVertex>,
 ) -> anyhow::Result<(Vec<u8>, f64, f64)> {
@@ -301,6 +308,7 @@ fn draw(
         budget,
         order,
         star_penalty,
+        solidity,
         ..PlpOptions::default()
     };
     traverse_plp_into(h, camera, &options, state, cut);

@@ -46,11 +46,37 @@ pub enum Order {
     Centroid,
 }
 
+/// What a projected cell passes on to its neighbours.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Solidity {
+    /// The paper's `|A| / ρmax`: the cell's share of the fullest cell's
+    /// triangle count.
+    #[default]
+    Count,
+    /// The cell's triangles' area over its cross-section, at most 1: a thin
+    /// shell of few large triangles is as opaque as a dense engine block
+    /// (the paper's conclusion asks for a better measure than the count).
+    Coverage,
+}
+
+impl std::str::FromStr for Solidity {
+    type Err = String;
+
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "count" => Ok(Self::Count),
+            "coverage" => Ok(Self::Coverage),
+            _ => Err(format!("solidity must be count or coverage, not {s}")),
+        }
+    }
+}
+
 /// Knobs of one PLP traversal.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct PlpOptions {
     pub budget: Budget,
     pub order: Order,
+    pub solidity: Solidity,
     /// Added to the solidity of a cell whose centroid the eye does not see
     /// through the face it is reached by (the non-star-shaped penalty), in
     /// units of a full cell (`ρmax` triangles). Added, not multiplied (the
@@ -68,6 +94,7 @@ impl Default for PlpOptions {
         Self {
             budget: Budget::Unlimited,
             order: Order::Solidity,
+            solidity: Solidity::Count,
             star_penalty: DEFAULT_STAR_PENALTY,
             backface_culling: true,
             record_pages: false,
@@ -275,7 +302,10 @@ impl<'a> Walk<'a> {
                 break;
             }
             let cell = sk.cells[a];
-            let own = f64::from(cell.triangles) / rho_max;
+            let own = match self.options.solidity {
+                Solidity::Count => f64::from(cell.triangles) / rho_max,
+                Solidity::Coverage => f64::from(cell.coverage).min(1.0),
+            };
             for f in 0..4 {
                 let b = cell.neighbours[f];
                 if b == NO_NEIGHBOUR || self.state.projected_stamp[b as usize] == self.state.frame {

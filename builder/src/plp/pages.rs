@@ -71,9 +71,25 @@ pub fn lay_out(
     for (new, &(_, old)) in order.iter().enumerate() {
         rank[old as usize] = new as u32;
     }
+    let area: Vec<f64> = tris
+        .corners
+        .iter()
+        .map(|[a, b, c]| (*b - *a).cross(*c - *a).length() * 0.5)
+        .collect();
+    let coverage = |old: u32| -> f32 {
+        let [a, b, c, d] = t.cells[old as usize].map(|v| t.points[v as usize]);
+        let volume = (b - a).cross(c - a).dot(d - a).abs() / 6.0;
+        let sum: f64 = lists[old as usize].iter().map(|&i| area[i as usize]).sum();
+        if volume > 0.0 {
+            (sum / volume.powf(2.0 / 3.0)) as f32
+        } else {
+            0.0
+        }
+    };
     let cells: Vec<Cell> = order
         .iter()
         .map(|&(_, old)| Cell {
+            coverage: coverage(old),
             vertices: t.cells[old as usize],
             neighbours: t.neighbours[old as usize].map(|n| {
                 if n == NONE {

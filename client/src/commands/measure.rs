@@ -114,6 +114,7 @@ pub fn bench_plp(args: BenchPlpArgs) -> anyhow::Result<()> {
         repeats: args.repeats,
         stride: args.stride,
         star_penalty: args.star_penalty,
+        solidity: args.solidity,
         paper: match args.paper.as_deref() {
             Some("city") => Some(PaperRow::city()),
             Some("cars") => Some(PaperRow::cars()),
