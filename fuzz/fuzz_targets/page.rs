@@ -1,13 +1,14 @@
 //! One page as it arrives on the wire: `Page::parse` (spheres) or
-//! `Page::parse_with_payload` (cubes), then `Hierarchy::insert_page` into a
-//! hierarchy whose directory agrees with the page (which is where the node
-//! codes, child counts, cube records and payloads are checked), then the
-//! reference decoder and a traversal of what was inserted.
+//! `Page::parse_with_payload` (cubes, PLP), then `Hierarchy::insert_page`
+//! into a hierarchy whose directory agrees with the page (which is where
+//! the node codes, child counts, cube records, PLP skeletons and cell
+//! pages and payloads are checked), then the reference decoder and a
+//! traversal of what was inserted.
 //!
-//! Input: a flags byte (bit 0: cubes; bits 1-3: color, normals, leaf
-//! geometry; bit 7: keep the checksum as it is instead of recomputing
-//! it), the cluster size, a u32 of nodes the directory puts after the page
-//! (for its children), then the page.
+//! Input: a flags byte (bit 0: cubes; bit 4: PLP; bits 1-3: color,
+//! normals, leaf geometry; bit 7: keep the checksum as it is instead of
+//! recomputing it), the cluster size, a u32 of nodes the directory puts
+//! after the page (for its children), then the page.
 #![no_main]
 
 use farfield_protocol::cube_codec::RECORD_BYTES;
@@ -31,7 +32,9 @@ fuzz_target!(|data: &[u8]| {
     if flags & 0x80 == 0 {
         farfield_fuzz::fix_page_checksum(&mut page);
     }
-    let kind = if flags & 1 == 0 {
+    let kind = if flags & 0x10 != 0 {
+        HierarchyKind::Plp
+    } else if flags & 1 == 0 {
         HierarchyKind::Spheres
     } else {
         HierarchyKind::Cubes
@@ -50,11 +53,14 @@ fuzz_target!(|data: &[u8]| {
             (layout.bytes(), 0)
         }
         HierarchyKind::Cubes => (RECORD_BYTES as u32, cluster),
+        HierarchyKind::Plp => (farfield_protocol::plp_codec::NODE_BYTES as u32, 0),
     };
     let index = claimed_index(&page).unwrap_or(0);
     let parsed = match kind {
         HierarchyKind::Spheres => Page::parse(&page, index, node_bytes),
-        HierarchyKind::Cubes => Page::parse_with_payload(&page, index, node_bytes),
+        HierarchyKind::Cubes | HierarchyKind::Plp => {
+            Page::parse_with_payload(&page, index, node_bytes)
+        }
     };
     let Ok(parsed) = parsed else {
         return;
@@ -68,12 +74,21 @@ fuzz_target!(|data: &[u8]| {
     if index == 0 && h.first_node != 0 {
         return;
     }
+    let nodes = h.first_node + u64::from(h.node_count) + u64::from(after);
+    let plp = kind == HierarchyKind::Plp;
+    // A PLP directory: the root's page first (its child the first cell),
+    // then cells, which have no children.
+    let first_child = |first_node: u64| match (plp, first_node) {
+        (false, _) => 0,
+        (true, 0) => 1,
+        (true, _) => nodes,
+    };
     let entry = |first_node: u64, node_count: u32| PageEntry {
         offset: 0,
         length: 0,
         node_count,
         first_node,
-        first_child: 0,
+        first_child: first_child(first_node),
         level_min: 0,
         level_max: 0,
         checksum: 0,
@@ -100,19 +115,17 @@ fuzz_target!(|data: &[u8]| {
         level_max: h.level_max,
         checksum: 0,
     });
-    let mut nodes = h.first_node + u64::from(h.node_count);
     if after > 0 {
-        pages.push(entry(nodes, after));
-        nodes += u64::from(after);
+        pages.push(entry(h.first_node + u64::from(h.node_count), after));
     }
     let header = FileHeader {
         kind,
         attributes,
         node_bytes,
         cluster,
-        levels: u32::from(h.level_max) + 1,
+        levels: if plp { 2 } else { u32::from(h.level_max) + 1 },
         nodes,
-        leaves: 0,
+        leaves: if plp { nodes.saturating_sub(1) } else { 0 },
         input_vertices: 0,
         bounds_min: DVec3::splat(-1.0),
         bounds_max: DVec3::splat(1.0),
