@@ -74,7 +74,12 @@ fuzz_target!(|data: &[u8]| {
     if index == 0 && h.first_node != 0 {
         return;
     }
-    let nodes = h.first_node + u64::from(h.node_count) + u64::from(after);
+    let Some(nodes) = h
+        .first_node
+        .checked_add(u64::from(h.node_count) + u64::from(after))
+    else {
+        return;
+    };
     let plp = kind == HierarchyKind::Plp;
     // A PLP directory: the root's page first (its child the first cell),
     // then cells, which have no children.

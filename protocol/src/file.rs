@@ -338,7 +338,7 @@ impl FileHeader {
             }
             HierarchyKind::Plp
                 if self.cluster != 0
-                    || self.nodes != self.leaves + 1
+                    || self.leaves.checked_add(1) != Some(self.nodes)
                     || self.levels != 2
                     || self
                         .pages
@@ -519,5 +519,26 @@ mod tests {
         );
         // A header built in memory still measures without overflowing.
         assert_eq!(bad.file_len(), u64::MAX);
+    }
+
+    /// Found by the `header` fuzz target: a PLP header claiming 2^64 - 1
+    /// leaves overflowed `leaves + 1` in the check of its node count.
+    #[test]
+    fn a_plp_header_with_every_leaf_is_refused_without_overflow() {
+        let mut plp = header(vec![PageEntry {
+            first_child: 1,
+            ..page(180, 40, 0)
+        }]);
+        plp.kind = HierarchyKind::Plp;
+        plp.node_bytes = crate::plp_codec::NODE_BYTES as u32;
+        plp.levels = 2;
+        plp.leaves = 0;
+        assert!(FileHeader::decode(&plp.encode()).is_ok(), "a root alone");
+        plp.leaves = u64::MAX;
+        let e = FileHeader::decode(&plp.encode()).unwrap_err();
+        assert!(e.to_string().contains("PLP tessellation"), "{e}");
+        plp.leaves = 0;
+        plp.levels = 3;
+        assert!(FileHeader::decode(&plp.encode()).is_err(), "levels");
     }
 }

@@ -13,6 +13,7 @@ use std::io::Cursor;
 use std::path::{Path, PathBuf};
 
 use farfield_builder::cubes::{CubeOptions, build_cubes};
+use farfield_builder::plp::{PlpOptions, build_plp};
 use farfield_builder::import::{Params, load_input};
 use farfield_builder::scene::{Geometry, Primitives, Scene};
 use farfield_builder::{BuildOptions, build_spheres};
@@ -97,6 +98,14 @@ fn main() {
     };
     let (file, _) = build_cubes(spot.clone(), &k2).unwrap();
     files.push(("cubes-k2-spot".into(), file));
+    // A PLP tessellation small enough for a seed: one octree split.
+    let plp = PlpOptions {
+        leaf_fraction: 1.0,
+        page_bytes: 1024,
+        ..PlpOptions::default()
+    };
+    let (file, _) = build_plp(&spot, &plp).unwrap();
+    files.push(("plp-spot".into(), file));
     for (name, file) in &files {
         file_seeds(&mut out, name, file);
     }
@@ -559,7 +568,9 @@ fn file_seeds(out: &mut Out, name: &str, file: &PagedFile) {
     seed.extend_from_slice(&bytes);
     out.seed("header", name, &seed);
     let cubes = h.kind == HierarchyKind::Cubes;
+    let plp = h.kind == HierarchyKind::Plp;
     let flags = u8::from(cubes)
+        | u8::from(plp) << 4
         | u8::from(h.attributes.color) << 1
         | u8::from(h.attributes.normals) << 2
         | u8::from(h.attributes.leaf_geometry) << 3;
@@ -570,7 +581,11 @@ fn file_seeds(out: &mut Out, name: &str, file: &PagedFile) {
         seed.extend_from_slice(page);
         out.seed("page", &format!("{name}-{i}"), &seed);
     }
-    // The node target: sphere records, or cube cells with their payloads.
+    // The node target: sphere records, or cube cells with their payloads
+    // (PLP records are two words, decoded with their page).
+    if plp {
+        return;
+    }
     let page = Page::parse_with_payload(&file.pages[0], 0, h.node_bytes).unwrap();
     if !cubes {
         let mut seed = vec![flags, 0];
