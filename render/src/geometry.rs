@@ -391,8 +391,9 @@ impl Renderer {
     }
 }
 
-/// Writes `bytes` into a buffer grown to the next power of two as needed.
-fn upload(
+/// Writes `bytes` into a vertex buffer grown to the next power of two as
+/// needed.
+pub(crate) fn upload(
     device: &wgpu::Device,
     queue: &wgpu::Queue,
     slot: &mut Option<(wgpu::Buffer, u64)>,
@@ -433,22 +434,38 @@ fn near_plane(
 ) -> f64 {
     let f = view.forward;
     let depth = |p: [f32; 3]| f64::from(p[0]) * f.x + f64::from(p[1]) * f.y + f64::from(p[2]) * f.z;
+    // The face's corner nearest the eye is within a diagonal of it.
+    let face_depths = faces.iter().flat_map(|g| {
+        let d = depth(g.min_corner);
+        let reach = f64::from(g.edge) * 3f64.sqrt();
+        [d - reach, d + reach]
+    });
+    near_plane_of(
+        vertices
+            .iter()
+            .map(|v| depth(v.position))
+            .chain(face_depths),
+    )
+}
+
+/// The near plane for triangles alone (the item buffer's, which must draw
+/// exactly what [`Renderer::render_geometry`] draws without faces).
+pub(crate) fn triangles_near_plane(
+    vertices: &[GpuVertex],
+    view: &farfield_protocol::camera::View,
+) -> f64 {
+    near_plane(vertices, &[], view)
+}
+
+/// Half the nearest positive depth, at least 1e-6 of the farthest; 1
+/// with nothing ahead.
+fn near_plane_of(depths: impl Iterator<Item = f64>) -> f64 {
     let (mut nearest, mut farthest) = (f64::INFINITY, 0.0f64);
-    let mut see = |d: f64| {
+    for d in depths {
         if d > 0.0 {
             nearest = nearest.min(d);
         }
         farthest = farthest.max(d);
-    };
-    for v in vertices {
-        see(depth(v.position));
-    }
-    for g in faces {
-        // The face's corner nearest the eye is within a diagonal of it.
-        let d = depth(g.min_corner);
-        let reach = f64::from(g.edge) * 3f64.sqrt();
-        see(d - reach);
-        see(d + reach);
     }
     if farthest <= 0.0 {
         return 1.0;

@@ -12,17 +12,16 @@
 //! test against depth cleared to 0. So the ids in the item buffer are the
 //! triangles the color image shows.
 
-use std::sync::mpsc;
-
-use anyhow::{Context, bail, ensure};
+use anyhow::{bail, ensure};
 use bytemuck::{Pod, Zeroable};
-use farfield_protocol::camera::{Camera, View};
+use farfield_protocol::camera::Camera;
 
 use super::GpuVertex;
 use super::adapter::Gpu;
 use super::error_scope::ValidationScope;
+use super::geometry::{triangles_near_plane, upload};
 use super::renderer::Renderer;
-use super::target::{DEPTH_FORMAT, color_target, depth_test};
+use super::target::{Target, color_target, depth_test};
 use super::uniform::UniformBinding;
 
 /// The item buffer's format: one id + 1 per pixel.
@@ -59,23 +58,8 @@ pub(crate) struct ItemBuffer {
     /// The vertex buffer and its capacity in bytes.
     vertex_buffer: Option<(wgpu::Buffer, u64)>,
     /// The frame, for the size it was last drawn at.
-    target: Option<ItemTarget>,
+    target: Option<Target>,
     scratch: Vec<ItemVertex>,
-}
-
-/// The integer color and depth textures and the readback buffer of one
-/// frame size.
-#[derive(Debug)]
-struct ItemTarget {
-    width: u32,
-    height: u32,
-    color: wgpu::Texture,
-    color_view: wgpu::TextureView,
-    depth_view: wgpu::TextureView,
-    readback: wgpu::Buffer,
-    /// Bytes per row in the readback buffer: `width * 4` rounded up to
-    /// [`wgpu::COPY_BYTES_PER_ROW_ALIGNMENT`].
-    padded_row: u32,
 }
 
 impl ItemBuffer {
@@ -158,13 +142,25 @@ impl ItemBuffer {
         gpu.queue
             .write_buffer(&self.uniform, 0, bytemuck::bytes_of(uniform));
         let bytes: &[u8] = bytemuck::cast_slice(&self.scratch);
-        upload(device, &gpu.queue, &mut self.vertex_buffer, bytes);
+        upload(
+            device,
+            &gpu.queue,
+            &mut self.vertex_buffer,
+            bytes,
+            "farfield item buffer triangles",
+        );
         if self
             .target
             .as_ref()
             .is_none_or(|t| (t.width, t.height) != (width, height))
         {
-            self.target = Some(ItemTarget::new(device, width, height));
+            self.target = Some(Target::with_color(
+                device,
+                width,
+                height,
+                ITEM_FORMAT,
+                "farfield item buffer",
+            ));
         }
         let Some(target) = self.target.as_ref() else {
             bail!("no item buffer frame");
@@ -207,7 +203,13 @@ impl ItemBuffer {
         }
         target.copy_out(&mut encoder);
         gpu.queue.submit([encoder.finish()]);
-        let read = target.read(device);
+        // Four bytes a texel: each an id + 1, in the machine's order.
+        let read = target.read(device).map(|bytes| {
+            bytes
+                .chunks_exact(4)
+                .map(|b| u32::from_ne_bytes([b[0], b[1], b[2], b[3]]))
+                .collect()
+        });
         // A validation error explains a failed (or meaningless) readback.
         if let Some(e) = scope.pop() {
             bail!(
@@ -217,169 +219,6 @@ impl ItemBuffer {
         }
         read
     }
-}
-
-impl ItemTarget {
-    fn new(device: &wgpu::Device, width: u32, height: u32) -> Self {
-        let size = wgpu::Extent3d {
-            width,
-            height,
-            depth_or_array_layers: 1,
-        };
-        let texture = |label, format, usage| {
-            device.create_texture(&wgpu::TextureDescriptor {
-                label: Some(label),
-                size,
-                mip_level_count: 1,
-                sample_count: 1,
-                dimension: wgpu::TextureDimension::D2,
-                format,
-                usage,
-                view_formats: &[],
-            })
-        };
-        let color = texture(
-            "farfield item buffer",
-            ITEM_FORMAT,
-            wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
-        );
-        let depth = texture(
-            "farfield item buffer depth",
-            DEPTH_FORMAT,
-            wgpu::TextureUsages::RENDER_ATTACHMENT,
-        );
-        let align = wgpu::COPY_BYTES_PER_ROW_ALIGNMENT;
-        let padded_row = (width * 4).div_ceil(align) * align;
-        let readback = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("farfield item buffer readback"),
-            size: u64::from(padded_row) * u64::from(height),
-            usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
-            mapped_at_creation: false,
-        });
-        Self {
-            width,
-            height,
-            color_view: color.create_view(&Default::default()),
-            depth_view: depth.create_view(&Default::default()),
-            color,
-            readback,
-            padded_row,
-        }
-    }
-
-    /// Records the copy of the item texture into the readback buffer.
-    fn copy_out(&self, encoder: &mut wgpu::CommandEncoder) {
-        encoder.copy_texture_to_buffer(
-            wgpu::TexelCopyTextureInfo {
-                texture: &self.color,
-                mip_level: 0,
-                origin: wgpu::Origin3d::ZERO,
-                aspect: wgpu::TextureAspect::All,
-            },
-            wgpu::TexelCopyBufferInfo {
-                buffer: &self.readback,
-                layout: wgpu::TexelCopyBufferLayout {
-                    offset: 0,
-                    bytes_per_row: Some(self.padded_row),
-                    rows_per_image: Some(self.height),
-                },
-            },
-            wgpu::Extent3d {
-                width: self.width,
-                height: self.height,
-                depth_or_array_layers: 1,
-            },
-        );
-    }
-
-    /// Waits for the submitted copy and returns the texels, padding
-    /// stripped, rows top first.
-    fn read(&self, device: &wgpu::Device) -> anyhow::Result<Vec<u32>> {
-        let (tx, rx) = mpsc::channel();
-        self.readback.map_async(wgpu::MapMode::Read, .., move |r| {
-            // The receiver outlives the poll below; a failed send cannot happen.
-            let _ = tx.send(r);
-        });
-        device
-            .poll(wgpu::PollType::wait_indefinitely())
-            .context("waiting for the GPU")?;
-        rx.recv()
-            .context("item buffer readback callback never ran")?
-            .context("mapping the item buffer readback")?;
-        let row = self.width as usize * 4;
-        let mut items = Vec::with_capacity(self.width as usize * self.height as usize);
-        {
-            let mapped = self
-                .readback
-                .get_mapped_range(..)
-                .context("reading the item buffer readback")?;
-            for padded in mapped.chunks(self.padded_row as usize) {
-                items.extend(
-                    padded[..row]
-                        .chunks_exact(4)
-                        .map(|b| u32::from_ne_bytes([b[0], b[1], b[2], b[3]])),
-                );
-            }
-        }
-        self.readback.unmap();
-        Ok(items)
-    }
-}
-
-/// Writes `bytes` into a vertex buffer grown to the next power of two as
-/// needed (as `geometry`'s buffers grow).
-fn upload(
-    device: &wgpu::Device,
-    queue: &wgpu::Queue,
-    slot: &mut Option<(wgpu::Buffer, u64)>,
-    bytes: &[u8],
-) {
-    if bytes.is_empty() {
-        return;
-    }
-    let len = bytes.len() as u64;
-    if slot.as_ref().is_none_or(|(_, cap)| *cap < len) {
-        let cap = len
-            .next_power_of_two()
-            .min(device.limits().max_buffer_size)
-            .max(len);
-        *slot = Some((
-            device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some("farfield item buffer triangles"),
-                size: cap,
-                usage: wgpu::BufferUsages::VERTEX | wgpu::BufferUsages::COPY_DST,
-                mapped_at_creation: false,
-            }),
-            cap,
-        ));
-    }
-    if let Some((buffer, _)) = slot {
-        queue.write_buffer(buffer, 0, bytes);
-    }
-}
-
-/// `geometry::near_plane` for triangles alone, i.e. the near plane
-/// [`Renderer::render_geometry`] uses when it draws no cube faces: a
-/// little in front of the nearest vertex ahead of the eye, but at least
-/// 1e-6 of the farthest depth. (That function takes the geometry module's
-/// private face type, so it cannot be called from here; the arithmetic
-/// must stay the same, which the coverage test checks with triangles
-/// reaching behind the eye.)
-fn near_plane(vertices: &[GpuVertex], view: &View) -> f64 {
-    let f = view.forward;
-    let depth = |p: [f32; 3]| f64::from(p[0]) * f.x + f64::from(p[1]) * f.y + f64::from(p[2]) * f.z;
-    let (mut nearest, mut farthest) = (f64::INFINITY, 0.0f64);
-    for v in vertices {
-        let d = depth(v.position);
-        if d > 0.0 {
-            nearest = nearest.min(d);
-        }
-        farthest = farthest.max(d);
-    }
-    if farthest <= 0.0 {
-        return 1.0;
-    }
-    (nearest * 0.5).max(farthest * 1e-6).max(f64::MIN_POSITIVE)
 }
 
 /// The distinct ids (not id + 1) present in an item buffer, ascending.
@@ -441,7 +280,7 @@ impl Renderer {
         );
         // As render_geometry: `near` here only clamps View's planes.
         let view = camera.view(1.0);
-        let near = near_plane(vertices, &view);
+        let near = triangles_near_plane(vertices, &view);
         let v4 = |v: glam::DVec3| [v.x as f32, v.y as f32, v.z as f32, 0.0];
         let uniform = ItemUniform {
             right: v4(view.right),

@@ -58,6 +58,18 @@ static GENERATIONS: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64:
 impl Target {
     /// Allocates a frame of `width` x `height` (each at least 1).
     pub fn new(device: &wgpu::Device, width: u32, height: u32) -> Self {
+        Self::with_color(device, width, height, COLOR_FORMAT, "farfield color")
+    }
+
+    /// A frame whose color texture has `format`, any of 4 bytes a texel
+    /// (the item buffer's `R32Uint`); [`Self::read`] returns its bytes.
+    pub fn with_color(
+        device: &wgpu::Device,
+        width: u32,
+        height: u32,
+        format: wgpu::TextureFormat,
+        label: &'static str,
+    ) -> Self {
         let (width, height) = (width.max(1), height.max(1));
         let size = wgpu::Extent3d {
             width,
@@ -77,8 +89,8 @@ impl Target {
             })
         };
         let color = texture(
-            "farfield color",
-            COLOR_FORMAT,
+            label,
+            format,
             wgpu::TextureUsages::RENDER_ATTACHMENT
                 | wgpu::TextureUsages::COPY_SRC
                 | wgpu::TextureUsages::TEXTURE_BINDING,

@@ -12,7 +12,7 @@ use farfield_protocol::plp_codec::{self, Cell, CellPage, NO_NEIGHBOUR, Skeleton,
 use glam::DVec3;
 
 use super::Triangles;
-use super::delaunay::{NONE, Tetrahedralization};
+use super::delaunay::{NONE, Tetrahedralization, morton};
 use crate::PagedFile;
 
 /// What the header records besides the tessellation.
@@ -260,9 +260,4 @@ impl PageBuilder {
             starts: self.starts,
         }
     }
-}
-
-/// A 63-bit Morton code of a point in the unit cube.
-fn morton(p: DVec3) -> u64 {
-    super::delaunay::morton(p)
 }
