@@ -204,10 +204,10 @@ pub struct BenchArgs {
     /// Cameras: the keyframes of this path (JSON); default an orbit at 1.75, 3.5 and 7 radii.
     #[arg(long)]
     pub path: Option<PathBuf>,
-    /// spheres, cubes or geometry.
+    /// A traversal kind (spheres, cubes, plp, centroid: PLP's nearest-first baseline) or geometry.
     #[arg(long)]
     pub mode: String,
-    /// PARAM=v1,v2,...: threshold or kernel (spheres), eps or coverage (cubes), full=all (geometry).
+    /// PARAM=v1,v2,...: threshold or kernel (spheres), eps or coverage (cubes), budget (plp, centroid: 5%, a count or all), full=all (geometry).
     #[arg(long)]
     pub sweep: String,
     /// A setting held fixed while sweeping, e.g. kernel=square (repeatable).

@@ -56,6 +56,7 @@ fn a_streamed_sweep_writes_tables_plots_and_a_report() {
     for r in &table {
         assert!(r.frame_ms > 0.0 && r.frame_ms_min <= r.frame_ms && r.frame_ms <= r.frame_ms_max);
         assert!(r.bytes > 0 && !r.reference_empty);
+        assert_eq!(r.coverage, None, "splats have no visible triangles");
         if r.value == "1" {
             // The reference is this very mode at 1 px.
             assert!(r.psnr_db.is_infinite() && r.rmse == 0.0, "{r:?}");
@@ -95,6 +96,98 @@ fn a_streamed_sweep_writes_tables_plots_and_a_report() {
         );
     }
     assert!(html.contains("CPU") && html.contains(&renderer.adapter_description()));
+    // Splats draw no triangles: no coverage plots.
+    for (file, title) in plots::COVERAGE {
+        assert!(!html.contains(title) && !dir.join("report").join(file).exists());
+    }
+    rt.block_on(server.shutdown()).unwrap();
+}
+
+/// PLP and its nearest-first baseline, streamed: every frame of the
+/// refinement records the paper's visible coverage against bytes and time,
+/// a whole budget ends covering everything, and a small one fetches less.
+#[test]
+fn a_streamed_plp_bench_records_coverage_against_bytes_and_time() {
+    let Some(mut renderer) = headless_or_skip(96, 72).unwrap() else {
+        return;
+    };
+    let dir = scratch("bench-plp-coverage");
+    let scenes = dir.join("scenes");
+    std::fs::create_dir_all(&scenes).unwrap();
+    let file = crate::plp::build(&crate::plp::rows(), &crate::plp::small_pages());
+    write_atomic(&scenes.join("rows.ff"), &file).unwrap();
+    let (rt, server, url) = crate::serve_dir(&scenes);
+    let mut outs = Vec::new();
+    for mode in ["plp", "centroid"] {
+        let job = BenchJob {
+            source: Source::Server {
+                url: url.clone(),
+                scene: "rows".into(),
+            },
+            path: None,
+            mode: mode.into(),
+            param: "budget".into(),
+            values: vec!["10%".into(), "100%".into()],
+            fixed: Vec::new(),
+            inputs: Vec::new(),
+            input_params: Vec::new(),
+            width: 96,
+            height: 72,
+            repeats: 1,
+            out: dir.join(mode),
+            timeout: Duration::from_secs(60),
+        };
+        let (table, progress) = run(&job, &mut renderer).unwrap();
+        assert_eq!(table.len(), 6, "{mode}");
+        for r in &table {
+            let c = r
+                .coverage
+                .unwrap_or_else(|| panic!("{mode}: no coverage in {r:?}"));
+            assert!((0.0..=1.0).contains(&c), "{mode}: {r:?}");
+            if r.value == "100%" {
+                assert_eq!(c, 1.0, "{mode}: a whole budget misses nothing: {r:?}");
+            }
+        }
+        let whole_bytes = |camera: u32, value: &str| {
+            table
+                .iter()
+                .find(|r| r.camera == camera && r.value == value)
+                .unwrap()
+                .bytes
+        };
+        // The nearest camera sees few of the boxes: a tenth of the scene
+        // needs fewer pages than all of it.
+        assert!(
+            whole_bytes(0, "10%") < whole_bytes(0, "100%"),
+            "{mode}: {} >= {}",
+            whole_bytes(0, "10%"),
+            whole_bytes(0, "100%")
+        );
+        for camera in 0..3 {
+            let frames: Vec<&ProgressRow> = progress
+                .iter()
+                .filter(|p| p.camera == camera && p.value == "100%")
+                .collect();
+            assert!(frames.len() >= 2, "{mode}: {} frames", frames.len());
+            // From nothing drawn to everything, never losing ground while
+            // the pages that arrive stay resident.
+            assert_eq!(frames[0].coverage, Some(0.0), "{mode} camera {camera}");
+            assert_eq!(frames.last().unwrap().coverage, Some(1.0));
+            for w in frames.windows(2) {
+                assert!(w[1].coverage >= w[0].coverage && w[1].bytes >= w[0].bytes);
+                assert!(w[1].ms_since_connect >= w[0].ms_since_connect);
+            }
+        }
+        outs.push(job.out);
+    }
+    // Both modes' curves on one page, with the coverage plots.
+    let page = report::write_report(&outs, &dir.join("report")).unwrap();
+    let html = std::fs::read_to_string(page).unwrap();
+    for (file, title) in plots::COVERAGE {
+        assert!(html.contains(title), "{title}");
+        let svg = std::fs::read_to_string(dir.join("report").join(file)).unwrap();
+        assert!(svg.contains("plp budget=100%") && svg.contains("centroid budget=100%"));
+    }
     rt.block_on(server.shutdown()).unwrap();
 }
 

@@ -50,7 +50,7 @@ fn boxes(list: &[(DVec3, DVec3)]) -> Scene {
 }
 
 /// Rows of boxes behind one another: most are hidden from the front.
-fn rows() -> Scene {
+pub fn rows() -> Scene {
     let mut list = Vec::new();
     for row in 0..6 {
         for col in 0..6 {
@@ -61,11 +61,11 @@ fn rows() -> Scene {
     boxes(&list)
 }
 
-fn build(scene: &Scene, options: &PlpOptions) -> PagedFile {
+pub fn build(scene: &Scene, options: &PlpOptions) -> PagedFile {
     build_plp(scene, options).expect("plp build").0
 }
 
-fn small_pages() -> PlpOptions {
+pub fn small_pages() -> PlpOptions {
     PlpOptions {
         page_bytes: 2048,
         ..PlpOptions::default()

@@ -21,6 +21,7 @@ use farfield_traverse::plp::{Order, PlpCut, PlpOptions, PlpState, Solidity, trav
 use farfield_view::path::CameraPath;
 use serde::Serialize;
 
+use crate::bench::visible::common_count;
 use farfield_image::compare;
 
 /// What to measure.
@@ -323,21 +324,6 @@ fn draw(
     ))
 }
 
-/// How many of the ascending `drawn` ids are in the ascending `visible`.
-fn common_count(visible: &[u32], drawn: impl Iterator<Item = u32>) -> usize {
-    let mut i = 0;
-    let mut n = 0;
-    for id in drawn {
-        while i < visible.len() && visible[i] < id {
-            i += 1;
-        }
-        if i < visible.len() && visible[i] == id {
-            n += 1;
-        }
-    }
-    n
-}
-
 /// Table 1 as text: our coverage next to the paper's, worst wrong pixels,
 /// frame times and speedups.
 pub fn format_table(r: &PlpBenchReport) -> String {
@@ -455,19 +441,4 @@ pub fn write_figures(r: &PlpBenchReport, dir: &std::path::Path) -> anyhow::Resul
         "milliseconds",
         &times,
     )
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn common_ids_are_counted_once() {
-        assert_eq!(
-            common_count(&[1, 3, 5, 9], [0, 1, 2, 5, 9, 10].into_iter()),
-            3
-        );
-        assert_eq!(common_count(&[], [1, 2].into_iter()), 0);
-        assert_eq!(common_count(&[4], std::iter::empty()), 0);
-    }
 }

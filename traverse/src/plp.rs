@@ -234,6 +234,7 @@ pub fn traverse_plp_into(
         cut,
         pages: &mut pages,
         pending: 0,
+        found: 0,
         requests: 0,
     };
     match options.order {
@@ -255,6 +256,10 @@ struct Walk<'a> {
     pages: &'a mut PageTracker,
     /// `|c|` of the projected cells whose pages are missing.
     pending: u64,
+    /// Resident triangles found but not yet in the cut: the centroid
+    /// order sorts them all before taking the budget's worth, and they
+    /// count against the budget when pages are wanted.
+    found: u64,
     /// Pages wanted so far (their rank sets their priority).
     requests: u64,
 }
@@ -359,6 +364,7 @@ impl<'a> Walk<'a> {
                     continue;
                 }
                 let centroid = (corners[0] + corners[1] + corners[2]) / 3.0;
+                self.found += 1;
                 candidates.push((
                     centroid.distance_squared(eye),
                     TriangleDraw {
@@ -417,7 +423,7 @@ impl<'a> Walk<'a> {
         if size == 0 {
             return;
         }
-        let committed = self.cut.triangles.len() as u64 + self.pending;
+        let committed = self.cut.triangles.len() as u64 + self.found + self.pending;
         if committed >= self.cut.budget {
             return;
         }

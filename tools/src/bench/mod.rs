@@ -14,11 +14,14 @@
 //!   against bytes, error against time since connect, and time by threshold
 //!   next to QSplat's Figure 1.
 //! - [`report`]: one HTML page from one or more bench folders.
+//! - [`visible`]: PLP's visible coverage ratio, for kinds that draw
+//!   triangles.
 
 pub mod modes;
 pub mod plots;
 pub mod report;
 pub mod rows;
+pub mod visible;
 
 use std::path::PathBuf;
 use std::rc::Rc;
@@ -142,19 +145,30 @@ struct ReferenceRenderer {
     label: String,
 }
 
+/// A camera's reference: its image, and (for triangle kinds) the ids of
+/// the triangles it shows.
+struct ReferenceFrame {
+    rgba: Vec<u8>,
+    visible: Option<Vec<u32>>,
+}
+
 impl ReferenceRenderer {
     fn image(
         &mut self,
         renderer: &mut Renderer,
         camera: &Camera,
         timeout: Duration,
-    ) -> anyhow::Result<Vec<u8>> {
+    ) -> anyhow::Result<ReferenceFrame> {
         if let Some(g) = &self.geometry {
             let mut vertices = Vec::new();
             g.pack(camera.eye, &mut vertices);
-            return Ok(renderer
+            let rgba = renderer
                 .render_geometry(camera, &vertices, &[], Coverage::Alpha, [0; 3])?
-                .rgba);
+                .rgba;
+            return Ok(ReferenceFrame {
+                rgba,
+                visible: None,
+            });
         }
         // The kind's finest setting (1 px splats; eps 0, all geometry).
         let threshold = self
@@ -175,7 +189,11 @@ impl ReferenceRenderer {
                 &mut rgba,
             )?;
             if self.cuts.wanted().is_empty() || started.elapsed() > timeout {
-                return Ok(rgba);
+                let visible = match (self.viewer.hierarchy(), self.cuts.draw_list()) {
+                    (Some(h), Some(list)) => visible::visible_set(renderer, h, camera, list)?,
+                    _ => None,
+                };
+                return Ok(ReferenceFrame { rgba, visible });
             }
             self.viewer.pump(Duration::from_millis(100))?;
         }
@@ -244,7 +262,8 @@ pub fn run(
         let mut settings = job.fixed.clone();
         settings.push((job.param.clone(), value.clone()));
         for (k, camera) in cams.iter().enumerate() {
-            let reference_rgba = &references[k];
+            let reference_rgba = &references[k].rgba;
+            let visible = references[k].visible.as_deref();
             let error = |rgba: &[u8]| compare(reference_rgba, rgba, job.width, job.height, 8);
             // A streamed view starts from nothing in a fresh session; a
             // file (or geometry) reuses the reference's resident pages.
@@ -283,6 +302,7 @@ pub fn run(
                         rmse: m.rmse,
                         psnr_db: m.psnr_db,
                         wrong_fraction: m.wrong_fraction,
+                        coverage: visible::coverage(visible, mode.draw_list()),
                     });
                     frame += 1;
                     if f.complete || started.elapsed() > job.timeout {
@@ -333,6 +353,7 @@ pub fn run(
                 width: job.width,
                 height: job.height,
                 repeats: job.repeats.max(1),
+                coverage: visible::coverage(visible, mode.draw_list()),
             });
         }
     }

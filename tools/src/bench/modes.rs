@@ -15,7 +15,7 @@ use anyhow::{Context, bail};
 use farfield_protocol::camera::Camera;
 use farfield_protocol::file::HierarchyKind;
 use farfield_render::{Coverage, Kernel, Renderer, SplatStyle};
-use farfield_traverse::{Budget, Registered};
+use farfield_traverse::{Budget, DrawList, Registered};
 use farfield_view::frame_loop::{LastCut, draw_frame};
 use farfield_view::viewer::Viewer;
 
@@ -96,6 +96,14 @@ impl Mode {
     pub fn kind(&self) -> Option<HierarchyKind> {
         match self {
             Self::Traversal { kind, .. } => Some(kind.hierarchy),
+            Self::Geometry { .. } => None,
+        }
+    }
+
+    /// What the last frame drew, for a traversal that has drawn one.
+    pub fn draw_list(&self) -> Option<DrawList<'_>> {
+        match self {
+            Self::Traversal { cut, .. } => cut.draw_list(),
             Self::Geometry { .. } => None,
         }
     }

@@ -7,6 +7,10 @@
 //!   refines, one curve per mode and setting (first camera).
 //! - [`THRESHOLD`]: frame time by splat threshold next to QSplat's
 //!   Figure 1 (St. Matthew on an SGI Onyx2, 2000).
+//! - [`COVERAGE_BYTES`] and [`COVERAGE_TIME`], only when the kind draws
+//!   triangles (PLP, its centroid baseline): the visible coverage ratio
+//!   against bytes received and against time since connect while a
+//!   streamed view refines, one curve per mode and setting (first camera).
 //!
 //! Each is written as `NAME.svg` and `NAME.png`.
 //!
@@ -32,6 +36,20 @@ pub const FRONTIER: &str = "frontier.svg";
 pub const BYTES: &str = "bytes.svg";
 pub const PROGRESS: &str = "progress.svg";
 pub const THRESHOLD: &str = "threshold.svg";
+pub const COVERAGE_BYTES: &str = "coverage_bytes.svg";
+pub const COVERAGE_TIME: &str = "coverage_time.svg";
+/// The plots of triangle kinds, written when some progress row has a
+/// coverage.
+pub const COVERAGE: [(&str, &str); 2] = [
+    (
+        COVERAGE_BYTES,
+        "Visible coverage against bytes received (streamed)",
+    ),
+    (
+        COVERAGE_TIME,
+        "Visible coverage against time since connect (streamed)",
+    ),
+];
 /// Every plot [`write_all`] writes, with its title.
 pub const ALL: [(&str, &str); 4] = [
     (
@@ -149,7 +167,7 @@ fn chart<DB: DrawingBackend>(
         x0 = (x0 * 0.8).max(1e-3);
         x1 = (x1 * 1.25).max(x0 * 10.0);
     } else {
-        let pad = ((x1 - x0) * 0.05).max(1.0);
+        let pad = ((x1 - x0) * 0.05).max(1e-3 * x1.abs().max(1.0));
         (x0, x1) = (x0 - pad, x1 + pad);
     }
     let (y0, y1) = ((y0 - 2.0).floor(), (y1 + 2.0).ceil().max(y0 + 5.0));
@@ -199,8 +217,14 @@ pub fn write_line_chart(
     chart(&root, title, x_desc, y_desc, series, false)
 }
 
-/// Writes every plot of [`ALL`] into `dir`, as SVG and as PNG.
-pub fn write_all(dir: &Path, rows: &[Row], progress: &[ProgressRow]) -> anyhow::Result<()> {
+/// Writes every plot of [`ALL`] into `dir`, as SVG and as PNG, and those
+/// of [`COVERAGE`] when there is a coverage to plot; returns the plots
+/// written, with their titles.
+pub fn write_all(
+    dir: &Path,
+    rows: &[Row],
+    progress: &[ProgressRow],
+) -> anyhow::Result<Vec<(&'static str, &'static str)>> {
     label_font()?;
     let psnr = format!("PSNR, dB (identical images drawn at {PSNR_CAP})");
     let frontier = per_setting(rows, |r| r.frame_ms);
@@ -212,6 +236,21 @@ pub fn write_all(dir: &Path, rows: &[Row], progress: &[ProgressRow]) -> anyhow::
             .or_default()
             .push((p.ms_since_connect, capped(p.psnr_db)));
     }
+    let (mut by_bytes, mut by_time) = (BTreeMap::new(), BTreeMap::new());
+    for p in progress.iter().filter(|p| p.camera == 0) {
+        let Some(c) = p.coverage else { continue };
+        let name = format!("{} {}={}", p.mode, p.param, p.value);
+        let percent = c * 100.0;
+        by_bytes
+            .entry(name.clone())
+            .or_insert_with(Vec::new)
+            .push((p.bytes as f64 / 1e6, percent));
+        by_time
+            .entry(name)
+            .or_insert_with(Vec::new)
+            .push((p.ms_since_connect, percent));
+    }
+    let coverage = "visible coverage ε, % of the visible triangles drawn";
     // Frame time by threshold: ours and QSplat's Figure 1.
     let mut ours: BTreeMap<String, Vec<f64>> = BTreeMap::new();
     for r in rows
@@ -258,16 +297,36 @@ pub fn write_all(dir: &Path, rows: &[Row], progress: &[ProgressRow]) -> anyhow::
                     &streams,
                     false,
                 )?,
+                COVERAGE_BYTES => chart(
+                    $root,
+                    COVERAGE[0].1,
+                    "MB received (10^6 bytes)",
+                    coverage,
+                    &by_bytes,
+                    false,
+                )?,
+                COVERAGE_TIME => chart(
+                    $root,
+                    COVERAGE[1].1,
+                    "time since connect, ms",
+                    coverage,
+                    &by_time,
+                    false,
+                )?,
                 _ => threshold_chart($root, &by_threshold)?,
             }
         };
     }
-    for (name, _) in ALL {
+    let mut written = ALL.to_vec();
+    if !by_bytes.is_empty() {
+        written.extend(COVERAGE);
+    }
+    for &(name, _) in &written {
         let path = dir.join(name);
         let root = SVGBackend::new(&path, SIZE).into_drawing_area();
         draw!(&root, name);
     }
-    for (name, _) in ALL {
+    for &(name, _) in &written {
         let mut rgb = vec![0u8; (SIZE.0 * SIZE.1 * 3) as usize];
         {
             let root = BitMapBackend::with_buffer(&mut rgb, SIZE).into_drawing_area();
@@ -280,7 +339,7 @@ pub fn write_all(dir: &Path, rows: &[Row], progress: &[ProgressRow]) -> anyhow::
         let png = dir.join(name.replace(".svg", ".png"));
         farfield_image::write_png(&png, SIZE.0, SIZE.1, &rgba)?;
     }
-    Ok(())
+    Ok(written)
 }
 
 /// DejaVu Sans (Bitstream Vera license, `tools/assets/`), for the

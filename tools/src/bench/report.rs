@@ -61,7 +61,7 @@ pub fn write_report(dirs: &[PathBuf], out: &Path) -> anyhow::Result<PathBuf> {
             );
         }
     }
-    plots::write_all(out, &all_rows, &all_progress)?;
+    let plotted = plots::write_all(out, &all_rows, &all_progress)?;
     let mut html = String::new();
     let esc = |s: &str| {
         s.replace('&', "&amp;")
@@ -103,7 +103,7 @@ pub fn write_report(dirs: &[PathBuf], out: &Path) -> anyhow::Result<PathBuf> {
         );
     }
     html.push_str("</ul>\n<p>Times are medians of repeats taken in one run; the tables give their spread. Compare ratios, not milliseconds, across machines.</p>\n");
-    for (file, title) in plots::ALL {
+    for (file, title) in plotted {
         let _ = writeln!(
             html,
             "<h2>{}</h2>\n<img src=\"{file}\" alt=\"{}\">",
@@ -113,7 +113,7 @@ pub fn write_report(dirs: &[PathBuf], out: &Path) -> anyhow::Result<PathBuf> {
         let png = file.replace(".svg", ".png");
         let _ = writeln!(html, "<p><a href=\"{png}\">{png}</a></p>");
     }
-    html.push_str("<h2>All measurements</h2>\n<table><tr><th>scene</th><th>mode</th><th>setting</th><th>camera</th><th>PSNR dB</th><th>RMSE</th><th>wrong %</th><th>frame ms (min..max)</th><th>traverse</th><th>upload</th><th>draw</th><th>drawn</th><th>bytes</th><th>note</th></tr>\n");
+    html.push_str("<h2>All measurements</h2>\n<table><tr><th>scene</th><th>mode</th><th>setting</th><th>camera</th><th>PSNR dB</th><th>RMSE</th><th>wrong %</th><th>frame ms (min..max)</th><th>traverse</th><th>upload</th><th>draw</th><th>drawn</th><th>bytes</th><th>coverage ε %</th><th>note</th></tr>\n");
     for r in &all_rows {
         let psnr = if r.psnr_db.is_finite() {
             format!("{:.2}", r.psnr_db)
@@ -125,9 +125,12 @@ pub fn write_report(dirs: &[PathBuf], out: &Path) -> anyhow::Result<PathBuf> {
         } else {
             ""
         };
+        let coverage = r
+            .coverage
+            .map_or_else(String::new, |c| format!("{:.1}", c * 100.0));
         let _ = writeln!(
             html,
-            "<tr><td>{}</td><td>{}</td><td>{}={}</td><td>{}</td><td>{psnr}</td><td>{:.3}</td><td>{:.2}</td><td>{:.2} ({:.2}..{:.2})</td><td>{:.2}</td><td>{:.2}</td><td>{:.2}</td><td>{}</td><td>{}</td><td>{note}</td></tr>",
+            "<tr><td>{}</td><td>{}</td><td>{}={}</td><td>{}</td><td>{psnr}</td><td>{:.3}</td><td>{:.2}</td><td>{:.2} ({:.2}..{:.2})</td><td>{:.2}</td><td>{:.2}</td><td>{:.2}</td><td>{}</td><td>{}</td><td>{coverage}</td><td>{note}</td></tr>",
             esc(&r.scene),
             esc(&r.mode),
             esc(&r.param),
@@ -197,6 +200,7 @@ mod tests {
             width: 8,
             height: 8,
             repeats: 1,
+            coverage: None,
         };
         let rows = vec![
             row("1", 20.0, f64::INFINITY, false),
@@ -215,6 +219,7 @@ mod tests {
             rmse: 3.0,
             psnr_db: 38.0,
             wrong_fraction: 0.02,
+            coverage: None,
         }];
         rows::write(&bench.join("progress.csv"), &progress).unwrap();
         let page = write_report(std::slice::from_ref(&bench), &out).unwrap();

@@ -18,10 +18,11 @@
 //! | `reference` | what the row was compared with |
 //! | `reference_empty` | `true` when the reference image is all background: nothing in view, the error says nothing |
 //! | `width`, `height`, `repeats` | image size and timing repeats |
+//! | `coverage` | triangle kinds (PLP): the visible coverage ratio `ε`, the share of the reference's visible triangles drawn (`visible.rs`); empty for other kinds |
 //!
 //! `progress.csv`, one [`ProgressRow`] per frame while a streamed view
 //! refines: `mode, param, value, camera, frame, ms_since_connect, bytes,
-//! rmse, psnr_db, wrong_fraction`.
+//! rmse, psnr_db, wrong_fraction, coverage`.
 
 use std::path::Path;
 
@@ -53,6 +54,7 @@ pub struct Row {
     pub width: u32,
     pub height: u32,
     pub repeats: u32,
+    pub coverage: Option<f64>,
 }
 
 /// One frame of a streamed view refining.
@@ -69,6 +71,7 @@ pub struct ProgressRow {
     #[serde(serialize_with = "psnr_out", deserialize_with = "psnr_in")]
     pub psnr_db: f64,
     pub wrong_fraction: f64,
+    pub coverage: Option<f64>,
 }
 
 /// PSNR of identical images is written `inf`, never `NaN`.
@@ -139,10 +142,12 @@ mod tests {
             width: 64,
             height: 48,
             repeats: 3,
+            coverage: None,
         };
         let second = Row {
             psnr_db: 31.25,
             rmse: 7.0,
+            coverage: Some(0.75),
             ..row.clone()
         };
         let dir = std::env::temp_dir().join(format!("ff-rows-{}", std::process::id()));
