@@ -16,11 +16,13 @@
 //!   triangles by default, few of them visible from the street. Params:
 //!   `seed` (1), `grid` (16, 1..=200), `furniture` (5 items per house on
 //!   average, 0..=16), `segments` (12 sides per cylinder, 3..=64).
-//! - `gen:cars` (`cars.rs`): the PLP paper's 5CBEM, `cars` copies of one
-//!   car (a closed body shell with window openings around a dense V8
-//!   engine) in a row along x, about 810 000 triangles by default. Params:
+//! - `gen:cars` (`cars/`: `shell.rs`, `engine.rs`, `cabin.rs` with the
+//!   wheels): the PLP paper's 5CBEM, `cars` copies of one car (a closed
+//!   body shell with window openings around a dense V8 engine) in a row
+//!   along x, about 810 000 triangles by default. Params:
 //!   `seed` (1), `cars` (5, 1..=1000), `detail` (1, 0.1..=8, scales every
-//!   tessellation count).
+//!   tessellation count), `body` (1, 0.1..=8, scales the body shell's grid
+//!   on top of it).
 //!
 //! `city` and `cars` come with camera paths (`paths.rs`, [`camera_path`]):
 //! a street-level walk and an orbit of the row, one keyframe per frame.
@@ -73,7 +75,7 @@ const ISLAND_KEYS: [&str; 6] = [
     "height",
 ];
 const CITY_KEYS: [&str; 4] = ["seed", "grid", "furniture", "segments"];
-const CARS_KEYS: [&str; 3] = ["seed", "cars", "detail"];
+const CARS_KEYS: [&str; 4] = ["seed", "cars", "detail", "body"];
 
 /// Builds the procedural scene `name` (without the `gen:` prefix) from
 /// `params`; see the module docs for names and params.
@@ -159,6 +161,12 @@ fn cars_params(params: &Params) -> Result<cars::CarsParams, ImportError> {
         detail: p.range(
             "detail",
             cars::DEFAULT_DETAIL,
+            cars::MIN_DETAIL,
+            cars::MAX_DETAIL,
+        )?,
+        body: p.range(
+            "body",
+            cars::DEFAULT_BODY,
             cars::MIN_DETAIL,
             cars::MAX_DETAIL,
         )?,
@@ -784,6 +792,8 @@ mod tests {
             "detail=0.01",
             "detail=9",
             "detail=nan",
+            "body=0",
+            "body=9",
             "cars=1.5",
         ] {
             let m = message("cars", &[bad]);
