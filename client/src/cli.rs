@@ -179,6 +179,10 @@ pub struct ViewArgs {
     /// PLP files: the share of the triangles a frame may draw, percent.
     #[arg(long, default_value_t = 100.0)]
     pub plp_budget: f64,
+    /// PLP files: a frame time in milliseconds to hold instead (the
+    /// triangle budget follows the measured draw rate; 0: off).
+    #[arg(long, default_value_t = 0.0)]
+    pub plp_budget_ms: f64,
     /// Resident pages kept, MiB.
     #[arg(long, default_value_t = 512)]
     pub cache_mib: u64,
@@ -427,6 +431,11 @@ fn view_job(args: ViewArgs) -> anyhow::Result<commands::view::ViewJob> {
         node_budget: args.budget,
         cache_mib: args.cache_mib.max(1),
         plp_budget_percent: args.plp_budget.clamp(0.0, 100.0),
+        plp_budget_ms: if args.plp_budget_ms.is_finite() {
+            args.plp_budget_ms.max(0.0)
+        } else {
+            0.0
+        },
         ..Default::default()
     };
     Ok(commands::view::ViewJob {

@@ -68,13 +68,12 @@ fn vs_triangle(v: TriangleIn) -> TriangleOut {
 
 @fragment
 fn fs_triangle(i: TriangleOut) -> @location(0) vec4<f32> {
-    var n: vec3<f32>;
-    if i.normal.w > 0.5 {
-        n = i.normal.xyz;
-    } else {
-        // Flat: the geometric normal from the position's derivatives.
-        n = cross(dpdx(i.rel), dpdy(i.rel));
-    }
+    // Flat: the geometric normal from the position's derivatives, taken
+    // before choosing: WGSL allows derivatives only in uniform control
+    // flow (Chrome's compiler refuses them inside the branch; naga does not
+    // check).
+    let flat = cross(dpdx(i.rel), dpdy(i.rel));
+    let n = select(flat, i.normal.xyz, i.normal.w > 0.5);
     return vec4<f32>(shade(i.color, n, -i.rel), 1.0);
 }
 

@@ -286,7 +286,7 @@ impl ViewerApp {
             coverage: s.coverage,
             ..SplatStyle::default()
         };
-        self.cut.budget = s.plp_budget();
+        s.apply_plp_budget(&mut self.cut);
         let started = Instant::now();
         match draw_frame(
             &mut self.viewer,

@@ -22,6 +22,10 @@ pub struct Settings {
     /// PLP files: the share of the scene's triangles a frame may draw,
     /// percent (100: all).
     pub plp_budget_percent: f64,
+    /// PLP files: a frame time to hold instead, milliseconds (0: off). The
+    /// paper's time-critical mode: the triangle budget follows the draw
+    /// rate measured on the frames before.
+    pub plp_budget_ms: f64,
 }
 
 impl Default for Settings {
@@ -35,6 +39,7 @@ impl Default for Settings {
             target_frame_ms: 33.0,
             cache_mib: 512,
             plp_budget_percent: 100.0,
+            plp_budget_ms: 0.0,
         }
     }
 }
@@ -47,6 +52,22 @@ impl Settings {
         } else {
             farfield_traverse::Budget::Percent(self.plp_budget_percent.max(0.0))
         }
+    }
+
+    /// Sets the frame loop's PLP budget: the slider's share, or the frame
+    /// time when one is set. The measured draw rate is kept while the
+    /// frame time stays the same (a fresh one would start from a guess).
+    pub fn apply_plp_budget(&self, cut: &mut farfield_view::frame_loop::LastCut) {
+        cut.budget = self.plp_budget();
+        let ms = self.plp_budget_ms;
+        cut.time_budget = if ms.is_finite() && ms > 0.0 {
+            match cut.time_budget {
+                Some(kept) if kept.target_ms == ms => Some(kept),
+                _ => Some(farfield_view::budget::TimeBudget::new(ms)),
+            }
+        } else {
+            None
+        };
     }
 
     pub fn cache_bytes(&self) -> usize {
@@ -131,6 +152,10 @@ pub fn show(ui: &mut egui::Ui, status: &Status, settings: &mut Settings) -> Acti
                     .text("PLP budget (% of triangles)"),
             );
             ui.add(
+                egui::Slider::new(&mut settings.plp_budget_ms, 0.0..=200.0)
+                    .text("PLP frame time (ms, 0: off)"),
+            );
+            ui.add(
                 egui::Slider::new(&mut settings.target_frame_ms, 8.0..=200.0)
                     .text("target frame (ms)"),
             );
@@ -148,4 +173,53 @@ pub fn show(ui: &mut egui::Ui, status: &Status, settings: &mut Settings) -> Acti
             ui.small("drag: orbit · right/shift drag: pan · wheel: zoom · F: fly (WASD, QE) · double-click: focus");
         });
     actions
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use farfield_traverse::Budget;
+    use farfield_view::frame_loop::LastCut;
+
+    #[test]
+    fn the_plp_controls_set_the_frame_loops_budget() {
+        let mut cut = LastCut::default();
+        let mut s = Settings {
+            plp_budget_percent: 5.0,
+            ..Settings::default()
+        };
+        s.apply_plp_budget(&mut cut);
+        assert_eq!(cut.budget, Budget::Percent(5.0));
+        assert!(cut.time_budget.is_none());
+        s.plp_budget_percent = 100.0;
+        s.apply_plp_budget(&mut cut);
+        assert_eq!(cut.budget, Budget::Unlimited);
+
+        // A frame time: it learns a rate, keeps it while the target holds,
+        // starts again when the target moves, and 0 turns it off.
+        s.plp_budget_ms = 20.0;
+        s.apply_plp_budget(&mut cut);
+        let mut learned = cut.time_budget.expect("a time budget");
+        let first_guess = learned.budget();
+        learned.observe(1000, 12.0, 2.0);
+        cut.time_budget = Some(learned);
+        s.apply_plp_budget(&mut cut);
+        // 0.01 ms a triangle: 20 ms hold at most 2000 of them, and at
+        // least 1800 beside the 2 ms that do not grow with the count.
+        let kept = cut.time_budget.expect("kept");
+        let Budget::Triangles(n) = kept.budget() else {
+            panic!("a time budget is a count");
+        };
+        assert!((1800..=2000).contains(&n), "{n}");
+        assert_ne!(kept.budget(), first_guess);
+        s.plp_budget_ms = 40.0;
+        s.apply_plp_budget(&mut cut);
+        let fresh = cut.time_budget.expect("a new one");
+        assert_eq!((fresh.target_ms, fresh.budget()), (40.0, first_guess));
+        for off in [0.0, f64::NAN, -3.0] {
+            s.plp_budget_ms = off;
+            s.apply_plp_budget(&mut cut);
+            assert!(cut.time_budget.is_none(), "{off}");
+        }
+    }
 }

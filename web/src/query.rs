@@ -1,5 +1,5 @@
 //! The viewer's options from the page's query string:
-//! `?panel=0&backend=webgl&kernel=round&threshold=2&budget=N&plp_budget=P&cache_mib=M&access_token=T`,
+//! `?panel=0&backend=webgl&kernel=round&threshold=2&budget=N&plp_budget=P&plp_budget_ms=MS&cache_mib=M&access_token=T`,
 //! and `flight=SECONDS` (the benchmark's scripted flight).
 
 use farfield_render::Kernel;
@@ -48,6 +48,9 @@ pub fn parse(search: &str) -> Result<Query, String> {
     }
     if let Some(p) = number("plp_budget")? {
         options.settings.plp_budget_percent = p.clamp(0.0, 100.0);
+    }
+    if let Some(ms) = number("plp_budget_ms")? {
+        options.settings.plp_budget_ms = ms;
     }
     options.flight_seconds = number("flight")?;
     if let Some(m) = number("cache_mib")? {

@@ -3,7 +3,9 @@
 //! show `farfield render`'s image of the camera in the URL, on WebGPU
 //! (SwiftShader) and on WebGL2; a drag must move the view and the page
 //! refine again to the new view's image; a server restart must leave the
-//! image up and the viewer resume asking only for what it lacks.
+//! image up and the viewer resume asking only for what it lacks; a PLP
+//! scene must show `farfield render --budget`'s image at the budget in the
+//! page's address.
 
 use std::net::SocketAddr;
 use std::path::PathBuf;
@@ -15,7 +17,7 @@ use farfield_tests::scratch;
 use serde_json::Value;
 
 use super::webdriver::Browser;
-use super::{bunny_in, camera_of_fragment, have, lit, missing, psnr, reference};
+use super::{PlpRows, bunny_in, camera_of_fragment, have, lit, missing, psnr, reference};
 use crate::streaming::runtime;
 
 const SIZE: (u32, u32) = (320, 240);
@@ -48,6 +50,13 @@ fn web_dir() -> Option<PathBuf> {
 
 /// The tools and files the browser tests need, or `None` when a tool is missing.
 fn setup(name: &str) -> Option<(PathBuf, PathBuf, PathBuf)> {
+    let (dir, web) = browser_ready(name)?;
+    let bunny = bunny_in(&dir)?;
+    Some((dir, bunny, web))
+}
+
+/// A scratch folder and the built viewer, or `None` when a tool is missing.
+fn browser_ready(name: &str) -> Option<(PathBuf, PathBuf)> {
     for tool in ["chromium", "chromedriver"] {
         if !have(tool) {
             missing(&format!(
@@ -57,9 +66,7 @@ fn setup(name: &str) -> Option<(PathBuf, PathBuf, PathBuf)> {
         }
     }
     let web = web_dir()?;
-    let dir = scratch(name);
-    let bunny = bunny_in(&dir)?;
-    Some((dir, bunny, web))
+    Some((scratch(name), web))
 }
 
 async fn serve(dir: &std::path::Path, web: &std::path::Path, listen: SocketAddr) -> RunningServer {
@@ -191,6 +198,42 @@ fn the_browser_viewer_keeps_its_image_through_a_server_restart() {
     );
     drop(browser);
     rt.block_on(second.shutdown()).unwrap();
+}
+
+/// A PLP scene at `?plp_budget=2`: the canvas shows what `farfield render
+/// --budget 2%` draws, not the whole scene.
+#[test]
+fn the_browser_draws_plp_on_the_budget_in_its_address() {
+    let _one = ONE_BROWSER.lock().unwrap_or_else(|e| e.into_inner());
+    let Some((dir, web)) = browser_ready("viewer-browser-plp") else {
+        return;
+    };
+    let Some(rows) = PlpRows::build(&dir, SIZE) else {
+        return;
+    };
+    let rt = runtime();
+    let server = rt.block_on(serve(&dir, &web, "127.0.0.1:0".parse().unwrap()));
+    let browser = Browser::start(SIZE.0, SIZE.1);
+    for backend in ["webgpu", "webgl"] {
+        browser.goto(&format!(
+            "http://{}/view/rows?panel=0&backend={backend}&plp_budget={}#{}",
+            server.local_addr(),
+            PlpRows::PERCENT,
+            rows.start
+        ));
+        browser.wait_for(backend, REFINED, REPORT, WAIT);
+        let hash = browser.eval("return location.hash");
+        assert_eq!(
+            camera_of_fragment(hash.as_str().unwrap_or_default()),
+            rows.camera,
+            "{backend}: the page opens at the link's camera"
+        );
+        let (w, h, shot) = browser.canvas_pixels();
+        assert_eq!((w, h), SIZE);
+        rows.check(&shot, SIZE, backend);
+    }
+    drop(browser);
+    rt.block_on(server.shutdown()).unwrap();
 }
 
 #[test]

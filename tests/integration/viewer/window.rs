@@ -13,7 +13,7 @@ use std::time::{Duration, Instant};
 
 use farfield_tests::scratch;
 
-use super::{bunny_in, camera_of_fragment, have, lit, missing, psnr, reference};
+use super::{PlpRows, bunny_in, camera_of_fragment, have, lit, missing, psnr, reference};
 use crate::xvfb::start_xvfb;
 
 /// The child's `farfield` arguments, tab-separated.
@@ -35,6 +35,33 @@ impl Drop for ViewerProcess {
 }
 
 impl ViewerProcess {
+    /// `farfield ARGS` (tab-separated) in a child on `display`.
+    fn spawn(display: &str, args: &str) -> Self {
+        let mut child = Command::new(std::env::current_exe().unwrap())
+            .args(["viewer::window::view_child", "--exact", "--nocapture"])
+            .env(CHILD_ENV, args)
+            .env("DISPLAY", display)
+            .env_remove("WAYLAND_DISPLAY")
+            .env(
+                farfield_render::DEVICE_SELECT_OFF.0,
+                farfield_render::DEVICE_SELECT_OFF.1,
+            )
+            .stdout(Stdio::piped())
+            .stderr(Stdio::inherit())
+            .spawn()
+            .expect("spawn the viewer");
+        let stdout = child.stdout.take().unwrap();
+        let (tx, lines) = std::sync::mpsc::channel();
+        std::thread::spawn(move || {
+            for line in BufReader::new(stdout).lines().map_while(Result::ok) {
+                if tx.send(line).is_err() {
+                    break;
+                }
+            }
+        });
+        Self { child, lines }
+    }
+
     /// The next line starting with `prefix`, without it.
     fn next(&mut self, prefix: &str) -> String {
         let started = Instant::now();
@@ -110,29 +137,7 @@ fn the_window_shows_the_headless_image_and_orbits_under_the_mouse() {
         png.to_str().unwrap(),
     ]
     .join("\t");
-    let mut child = Command::new(std::env::current_exe().unwrap())
-        .args(["viewer::window::view_child", "--exact", "--nocapture"])
-        .env(CHILD_ENV, args)
-        .env("DISPLAY", &display)
-        .env_remove("WAYLAND_DISPLAY")
-        .env(
-            farfield_render::DEVICE_SELECT_OFF.0,
-            farfield_render::DEVICE_SELECT_OFF.1,
-        )
-        .stdout(Stdio::piped())
-        .stderr(Stdio::inherit())
-        .spawn()
-        .expect("spawn the viewer");
-    let stdout = child.stdout.take().unwrap();
-    let (tx, lines) = std::sync::mpsc::channel();
-    std::thread::spawn(move || {
-        for line in BufReader::new(stdout).lines().map_while(Result::ok) {
-            if tx.send(line).is_err() {
-                break;
-            }
-        }
-    });
-    let mut viewer = ViewerProcess { child, lines };
+    let mut viewer = ViewerProcess::spawn(&display, &args);
 
     let (camera, first) = viewer.refined();
     assert_eq!(
@@ -179,6 +184,39 @@ fn the_window_shows_the_headless_image_and_orbits_under_the_mouse() {
         change < 25.0,
         "the picture did not change with the camera ({change:.1} dB)"
     );
+}
+
+/// A PLP file in the window with `--plp-budget 2`: it shows what
+/// `farfield render --budget 2%` draws, not the whole scene.
+#[test]
+fn the_window_draws_plp_on_the_budget_it_was_given() {
+    let Some(xvfb) = start_xvfb() else {
+        return missing("the window test needs Xvfb (apt-get install xvfb)");
+    };
+    let dir = scratch("viewer-window-plp");
+    let Some(rows) = PlpRows::build(&dir, SIZE) else {
+        return;
+    };
+    let png = dir.join("window.png");
+    let args = [
+        "view",
+        "--file",
+        rows.file.to_str().unwrap(),
+        "--size",
+        "320x240",
+        "--no-panel",
+        "--camera",
+        &rows.start.replace('&', ","),
+        "--plp-budget",
+        &PlpRows::PERCENT.to_string(),
+        "--screenshot-when-refined",
+        png.to_str().unwrap(),
+    ]
+    .join("\t");
+    let mut viewer = ViewerProcess::spawn(xvfb.display(), &args);
+    let (camera, shown) = viewer.refined();
+    assert_eq!(camera_of_fragment(&camera), rows.camera);
+    rows.check(&shown, SIZE, "the window");
 }
 
 /// The child: `farfield` with the arguments in [`CHILD_ENV`], in-process.
