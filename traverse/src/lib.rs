@@ -14,12 +14,15 @@
 //! - [`plp`]: Prioritized-Layered Projection over a Delaunay tessellation
 //!   (triangles in solidity order within a budget), and its
 //!   centroid-sorted baseline.
+//! - [`impostors`]: hierarchical image caching's error metric and safety
+//!   zones (the cache and its walk to come).
 //! - [`wanted`]: the pages a traversal asks for and the pages it read.
 //!
 //! A new kind is a new module with a [`Registered`] entry in [`KINDS`].
 
 pub mod budget;
 pub mod cubes;
+pub mod impostors;
 pub mod plp;
 pub mod spheres;
 pub mod wanted;
