@@ -15,6 +15,7 @@
 //! allocator the binaries that build use (huge pages for the large arrays).
 
 pub mod allocator;
+pub mod bsp;
 pub mod import;
 pub mod scene;
 

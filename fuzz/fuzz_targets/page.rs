@@ -54,11 +54,13 @@ fuzz_target!(|data: &[u8]| {
         }
         HierarchyKind::Cubes => (RECORD_BYTES as u32, cluster),
         HierarchyKind::Plp => (farfield_protocol::plp_codec::NODE_BYTES as u32, 0),
+        // Not generated yet: a BSP directory has a page per node.
+        HierarchyKind::Bsp => (farfield_protocol::bsp_codec::NODE_BYTES as u32, 0),
     };
     let index = claimed_index(&page).unwrap_or(0);
     let parsed = match kind {
         HierarchyKind::Spheres => Page::parse(&page, index, node_bytes),
-        HierarchyKind::Cubes | HierarchyKind::Plp => {
+        HierarchyKind::Cubes | HierarchyKind::Plp | HierarchyKind::Bsp => {
             Page::parse_with_payload(&page, index, node_bytes)
         }
     };

@@ -30,6 +30,9 @@ pub enum HierarchyKind {
     /// Klosowski and Silva's PLP tessellation: a root whose children are
     /// Delaunay cells (`plp_codec`).
     Plp = 3,
+    /// Shade et al.'s image-caching BSP: a root whose children are shared
+    /// prototypes and BSP leaves, a page each (`bsp_codec`).
+    Bsp = 4,
 }
 
 impl HierarchyKind {
@@ -38,6 +41,7 @@ impl HierarchyKind {
             1 => Ok(Self::Spheres),
             2 => Ok(Self::Cubes),
             3 => Ok(Self::Plp),
+            4 => Ok(Self::Bsp),
             other => Err(FormatError::BadHeader(format!(
                 "unknown hierarchy kind {other}"
             ))),
@@ -49,6 +53,7 @@ impl HierarchyKind {
             Self::Spheres => "spheres",
             Self::Cubes => "cubes",
             Self::Plp => "plp",
+            Self::Bsp => "bsp",
         }
     }
 }
@@ -334,6 +339,30 @@ impl FileHeader {
                     "PLP node size {} is not {}",
                     self.node_bytes,
                     crate::plp_codec::NODE_BYTES
+                ));
+            }
+            HierarchyKind::Bsp if self.node_bytes != crate::bsp_codec::NODE_BYTES as u32 => {
+                return bad(format!(
+                    "BSP node size {} is not {}",
+                    self.node_bytes,
+                    crate::bsp_codec::NODE_BYTES
+                ));
+            }
+            HierarchyKind::Bsp
+                if self.cluster != 0
+                    || self.leaves.checked_add(1) != Some(self.nodes)
+                    || self.levels != 2
+                    || self.pages.len() as u64 != self.nodes
+                    || self
+                        .pages
+                        .first()
+                        .is_some_and(|p| p.node_count != 1 || p.first_child != 1) =>
+            {
+                return bad(format!(
+                    "a BSP file is a root alone in page 0 and one prototype or leaf a page after it ({} nodes, {} pages, cluster {})",
+                    self.nodes,
+                    self.pages.len(),
+                    self.cluster
                 ));
             }
             HierarchyKind::Plp

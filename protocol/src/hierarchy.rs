@@ -10,6 +10,7 @@
 use glam::{DVec3, Vec3};
 
 use crate::FormatError;
+use crate::bsp_codec::{BspSkeleton, ContentPage};
 use crate::cube_codec::{self, Channels, CubeRecord, Payload};
 use crate::file::{FileHeader, HierarchyKind};
 use crate::page::{Page, PageHeader};
@@ -32,6 +33,17 @@ pub struct ResidentPage {
     pub cubes: Option<CubePage>,
     /// PLP pages: the skeleton (page 0) or cells' triangles.
     pub plp: Option<PlpPage>,
+    /// Image-caching BSP pages: the tree (page 0), a prototype or a leaf.
+    pub bsp: Option<BspPage>,
+}
+
+/// A resident BSP page, decoded once on arrival.
+#[derive(Debug, Clone)]
+pub enum BspPage {
+    /// Page 0: the tree, its boxes and the prototypes' sizes.
+    Skeleton(Box<BspSkeleton>),
+    /// A prototype's or a leaf's geometry.
+    Content(ContentPage),
 }
 
 /// A resident PLP page, decoded once on arrival.
@@ -123,7 +135,7 @@ impl Hierarchy {
             })?;
         let page = match self.header.kind {
             HierarchyKind::Spheres => Page::parse(bytes, index, self.header.node_bytes)?,
-            HierarchyKind::Cubes | HierarchyKind::Plp => {
+            HierarchyKind::Cubes | HierarchyKind::Plp | HierarchyKind::Bsp => {
                 Page::parse_with_payload(bytes, index, self.header.node_bytes)?
             }
         };
@@ -137,16 +149,20 @@ impl Hierarchy {
                 message: "page disagrees with the directory".into(),
             });
         }
-        let (child_counts, cubes, plp) = match self.header.kind {
-            HierarchyKind::Spheres => (self.sphere_child_counts(&page)?, None, None),
+        let (child_counts, cubes, plp, bsp) = match self.header.kind {
+            HierarchyKind::Spheres => (self.sphere_child_counts(&page)?, None, None, None),
             HierarchyKind::Cubes => {
                 let cubes = self.cube_page(&page)?;
                 let counts = cubes.records.iter().map(CubeRecord::child_count).collect();
-                (counts, Some(cubes), None)
+                (counts, Some(cubes), None, None)
             }
             HierarchyKind::Plp => {
                 let (counts, plp) = self.plp_page(&page)?;
-                (counts, None, Some(plp))
+                (counts, None, Some(plp), None)
+            }
+            HierarchyKind::Bsp => {
+                let (counts, bsp) = self.bsp_page(&page)?;
+                (counts, None, None, Some(bsp))
             }
         };
         // Every child must be a real node after its parent, and the page's
@@ -188,8 +204,8 @@ impl Hierarchy {
         self.resident_bytes += bytes.len();
         self.pages[index as usize] = Some(ResidentPage {
             header: h,
-            // Cube and PLP records live decoded in `cubes` and `plp`.
-            records: if cubes.is_some() || plp.is_some() {
+            // Cube, PLP and BSP records live decoded in their own fields.
+            records: if cubes.is_some() || plp.is_some() || bsp.is_some() {
                 Vec::new()
             } else {
                 let mut r = Vec::with_capacity(page.records.len() + 8);
@@ -201,6 +217,7 @@ impl Hierarchy {
             byte_len: bytes.len(),
             cubes,
             plp,
+            bsp,
         });
         Ok(())
     }
@@ -299,6 +316,42 @@ impl Hierarchy {
             vec![0; page.header.node_count as usize],
             PlpPage::Cells(cells),
         ))
+    }
+
+    /// Decodes a BSP page: page 0 is the root (its record the number of
+    /// pages after it) and the tree; every other page one prototype or
+    /// leaf, which have no children in the file.
+    fn bsp_page(&self, page: &Page) -> Result<(Vec<u32>, BspPage), FormatError> {
+        let bad = |message: String| FormatError::BadPage {
+            page: page.header.index,
+            message,
+        };
+        if page.header.index == 0 {
+            let mut word = [0u8; 4];
+            word.copy_from_slice(page.records.get(..4).ok_or_else(|| bad("no root".into()))?);
+            let children = u32::from_le_bytes(word);
+            if u64::from(children) != self.header.leaves || page.records.get(4..8) != Some(&[0; 4])
+            {
+                return Err(bad(format!(
+                    "the root has {children} children, the directory {}",
+                    self.header.leaves
+                )));
+            }
+            let skeleton =
+                BspSkeleton::decode(page.payload, self.header.root_center, self.header.leaves)
+                    .map_err(|e| bad(format!("BSP tree: {e}")))?;
+            return Ok((vec![children], BspPage::Skeleton(Box::new(skeleton))));
+        }
+        let content = ContentPage::decode(page.records, page.payload).map_err(bad)?;
+        Ok((vec![0], BspPage::Content(content)))
+    }
+
+    /// The BSP tree, once page 0 is resident.
+    pub fn bsp_skeleton(&self) -> Option<&BspSkeleton> {
+        match self.page(0)?.bsp.as_ref()? {
+            BspPage::Skeleton(s) => Some(s),
+            BspPage::Content(_) => None,
+        }
     }
 
     /// The PLP skeleton, once page 0 is resident.

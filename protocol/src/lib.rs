@@ -14,6 +14,8 @@
 //!   sub-cubes and cell-relative leaf geometry (Chamberlain et al.).
 //! - [`plp_codec`]: the PLP tessellation (Klosowski & Silva): the cell
 //!   skeleton in page 0, each page's cells and their triangles.
+//! - [`bsp_codec`]: hierarchical image caching's BSP (Shade et al.): the
+//!   tree in page 0, a page per shared prototype, a page per leaf.
 //! - [`shading`]: the fixed light the cube builder bakes in and the
 //!   client's geometry pass repeats; [`octahedral`]: 32-bit unit normals.
 //! - [`camera`]: a view with f64 frustum planes and projected-size math.
@@ -26,6 +28,7 @@
 //!   [`messages::ServerMessage`]; [`codec`]: their bytes (bincode 2, in one
 //!   module so it can be swapped); [`percent`]: names and tokens in URLs.
 
+pub mod bsp_codec;
 pub mod camera;
 pub mod codec;
 pub mod cube_codec;

@@ -360,17 +360,17 @@ impl CellPage {
 }
 
 /// Little-endian words from a slice, each read checked.
-struct Words<'a> {
+pub(crate) struct Words<'a> {
     bytes: &'a [u8],
     at: usize,
 }
 
 impl<'a> Words<'a> {
-    fn new(bytes: &'a [u8]) -> Self {
+    pub(crate) fn new(bytes: &'a [u8]) -> Self {
         Self { bytes, at: 0 }
     }
 
-    fn bytes<const N: usize>(&mut self) -> Result<[u8; N], String> {
+    pub(crate) fn bytes<const N: usize>(&mut self) -> Result<[u8; N], String> {
         let end = self.at.checked_add(N).ok_or("length overflow")?;
         let slice = self
             .bytes
@@ -382,19 +382,24 @@ impl<'a> Words<'a> {
         Ok(out)
     }
 
-    fn u32(&mut self) -> Result<u32, String> {
+    /// Bytes not read yet.
+    pub(crate) fn remaining(&self) -> usize {
+        self.bytes.len().saturating_sub(self.at)
+    }
+
+    pub(crate) fn u32(&mut self) -> Result<u32, String> {
         self.bytes::<4>().map(u32::from_le_bytes)
     }
 
-    fn u64(&mut self) -> Result<u64, String> {
+    pub(crate) fn u64(&mut self) -> Result<u64, String> {
         self.bytes::<8>().map(u64::from_le_bytes)
     }
 
-    fn f32(&mut self) -> Result<f64, String> {
+    pub(crate) fn f32(&mut self) -> Result<f64, String> {
         self.bytes::<4>().map(|b| f64::from(f32::from_le_bytes(b)))
     }
 
-    fn f64(&mut self) -> Result<f64, String> {
+    pub(crate) fn f64(&mut self) -> Result<f64, String> {
         self.bytes::<8>().map(f64::from_le_bytes)
     }
 }

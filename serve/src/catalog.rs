@@ -165,10 +165,12 @@ impl ServedScene {
 ///
 /// A PLP tessellation has none to offer: its root's children are every
 /// cell, so reading them ahead would read the whole scene. Its clients ask
-/// in their own projection order, which is the prefetch order.
+/// in their own projection order, which is the prefetch order. The same
+/// holds for an image-caching BSP, whose root's children are every leaf.
 fn child_ranges(h: &FileHeader) -> Vec<Range<u32>> {
     let n = h.pages.len();
-    if h.kind == farfield_protocol::file::HierarchyKind::Plp {
+    use farfield_protocol::file::HierarchyKind;
+    if matches!(h.kind, HierarchyKind::Plp | HierarchyKind::Bsp) {
         return vec![0..0; n];
     }
     (0..n)

@@ -143,7 +143,7 @@ impl SceneFile {
     fn verify(&self, index: usize, bytes: &[u8]) -> Result<(), FormatError> {
         let page = match self.header.kind {
             HierarchyKind::Spheres => Page::parse(bytes, index as u32, self.header.node_bytes)?,
-            HierarchyKind::Cubes | HierarchyKind::Plp => {
+            HierarchyKind::Cubes | HierarchyKind::Plp | HierarchyKind::Bsp => {
                 Page::parse_with_payload(bytes, index as u32, self.header.node_bytes)?
             }
         };

@@ -4,6 +4,7 @@
 //! builder for a new hierarchy kind or a new draw list (the matches below
 //! are exhaustive, so the compiler asks for them).
 
+use farfield_builder::bsp::{BspOptions, build_bsp};
 use farfield_builder::cubes::{CubeOptions, build_cubes};
 use farfield_builder::import::{Params, load_input};
 use farfield_builder::plp::{PlpOptions, build_plp};
@@ -41,6 +42,13 @@ fn file_of(kind: HierarchyKind) -> PagedFile {
                 ..PlpOptions::default()
             };
             build_plp(&scene, &options).expect("plp").0
+        }
+        HierarchyKind::Bsp => {
+            let options = BspOptions {
+                leaf_triangles: 500,
+                ..BspOptions::default()
+            };
+            build_bsp(&scene, &options).expect("bsp").0
         }
     }
 }

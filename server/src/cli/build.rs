@@ -7,6 +7,7 @@ use anyhow::Context;
 use indicatif::{ProgressBar, ProgressStyle};
 use serde_json::json;
 
+use farfield_builder::bsp::{BspOptions, build_bsp};
 use farfield_builder::cubes::{CubeOptions, build_cubes};
 use farfield_builder::import::{Params, load_inputs};
 use farfield_builder::plp::{PlpOptions, build_plp};
@@ -112,6 +113,19 @@ pub fn run(args: &BuildArgs) -> anyhow::Result<Report> {
             drop(scene);
             let nodes = file.header.nodes;
             (file, serde_json::to_value(stats)?, nodes, "plp")
+        }
+        Kind::Bsp => {
+            let options = BspOptions {
+                directions: args.bsp_directions,
+                inflation: args.inflation,
+                leaf_triangles: args.leaf_triangles,
+                ..BspOptions::default()
+            };
+            let (file, stats) = build_bsp(&scene, &options)
+                .with_context(|| format!("building {}", args.inputs.join(" ")))?;
+            drop(scene);
+            let nodes = file.header.nodes;
+            (file, serde_json::to_value(stats)?, nodes, "bsp")
         }
     };
     let seconds_build = build_started.elapsed().as_secs_f64();

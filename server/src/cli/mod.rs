@@ -52,8 +52,9 @@ pub struct BuildArgs {
     #[arg(long)]
     pub page_bytes: Option<usize>,
     /// Which hierarchy: QSplat's bounding spheres, the color-cube octree
-    /// of Chamberlain et al. with the geometry at its leaves, or PLP's
-    /// Delaunay tessellation (Klosowski and Silva) for budgeted rendering.
+    /// of Chamberlain et al. with the geometry at its leaves, PLP's
+    /// Delaunay tessellation (Klosowski and Silva) for budgeted rendering,
+    /// or the BSP by gaps of Shade et al.'s hierarchical image caching.
     #[arg(long, value_enum, default_value_t = Kind::Spheres)]
     pub kind: Kind,
     /// Cubes: samples per cube-face edge (16 = 4 x 4 pixels of 4 x 4 samples).
@@ -80,6 +81,18 @@ pub struct BuildArgs {
     /// PLP: the seed of the leaf centres' random perturbation.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
+    /// BSP: splitting directions, evenly around the up axis (+Z); 2 makes
+    /// every region an axis-aligned box (the paper's island).
+    #[arg(long, default_value_t = 2)]
+    pub bsp_directions: u32,
+    /// BSP: each leaf also stores the geometry inside its region grown by
+    /// this fraction (the paper's 17 %), so neighbouring caches overlap.
+    #[arg(long, default_value_t = 0.17)]
+    pub inflation: f64,
+    /// BSP: a node with at most one instance and at most this many other
+    /// triangles is a leaf.
+    #[arg(long, default_value_t = 4096)]
+    pub leaf_triangles: u64,
     /// Print one JSON summary object on stdout and no progress bar.
     #[arg(long)]
     pub json: bool,
@@ -91,6 +104,7 @@ pub enum Kind {
     Spheres,
     Cubes,
     Plp,
+    Bsp,
 }
 
 #[derive(Debug, clap::Args)]
