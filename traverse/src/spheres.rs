@@ -93,6 +93,11 @@ pub fn traverse_into(h: &Hierarchy, camera: &Camera, options: &TraverseOptions, 
     cut.frustum_culled = 0;
     cut.backface_culled = 0;
     cut.touched_pages.clear();
+    // Another kind's pages keep no sphere records (a BSP file has no
+    // traversal yet and is given this one): nothing to walk.
+    if h.header.kind != farfield_protocol::file::HierarchyKind::Spheres {
+        return;
+    }
     let mut pages = PageTracker::new(h.header.pages.len(), options.record_pages);
     // Table lookups hoisted out of the loop (each accessor checks a OnceLock).
     let spheres = sphere_codec::sphere_table();
