@@ -288,6 +288,28 @@ impl Hierarchy {
         Ok(cubes)
     }
 
+    /// The record of a flat file's root (PLP, BSP: u32 child count, u32
+    /// 0), which must count every node after it; `what` names them.
+    fn flat_root(&self, page: &Page, what: &str) -> Result<u32, FormatError> {
+        let mut word = [0u8; 4];
+        let first = page.records.get(..4).ok_or_else(|| FormatError::BadPage {
+            page: page.header.index,
+            message: "no root".into(),
+        })?;
+        word.copy_from_slice(first);
+        let count = u32::from_le_bytes(word);
+        if u64::from(count) != self.header.leaves || page.records.get(4..8) != Some(&[0; 4]) {
+            return Err(FormatError::BadPage {
+                page: page.header.index,
+                message: format!(
+                    "the root has {count} {what}, the directory {}",
+                    self.header.leaves
+                ),
+            });
+        }
+        Ok(count)
+    }
+
     /// Decodes a PLP page: page 0 is the root (its record the cell count)
     /// and the skeleton; every other page holds cells, which have no
     /// children.
@@ -297,15 +319,7 @@ impl Hierarchy {
             message,
         };
         if page.header.index == 0 {
-            let mut word = [0u8; 4];
-            word.copy_from_slice(page.records.get(..4).ok_or_else(|| bad("no root".into()))?);
-            let cells = u32::from_le_bytes(word);
-            if u64::from(cells) != self.header.leaves || page.records.get(4..8) != Some(&[0; 4]) {
-                return Err(bad(format!(
-                    "the root has {cells} cells, the directory {}",
-                    self.header.leaves
-                )));
-            }
+            let cells = self.flat_root(page, "cells")?;
             let skeleton =
                 Skeleton::decode(page.payload, self.header.root_center, self.header.leaves)
                     .map_err(|e| bad(format!("skeleton: {e}")))?;
@@ -327,16 +341,7 @@ impl Hierarchy {
             message,
         };
         if page.header.index == 0 {
-            let mut word = [0u8; 4];
-            word.copy_from_slice(page.records.get(..4).ok_or_else(|| bad("no root".into()))?);
-            let children = u32::from_le_bytes(word);
-            if u64::from(children) != self.header.leaves || page.records.get(4..8) != Some(&[0; 4])
-            {
-                return Err(bad(format!(
-                    "the root has {children} children, the directory {}",
-                    self.header.leaves
-                )));
-            }
+            let children = self.flat_root(page, "children")?;
             let skeleton =
                 BspSkeleton::decode(page.payload, self.header.root_center, self.header.leaves)
                     .map_err(|e| bad(format!("BSP tree: {e}")))?;

@@ -43,15 +43,18 @@ pub fn inflate(
 ) -> Vec<Inflated> {
     // Keys along each direction, and the triangles sorted along the first
     // so a region's candidates are one binary-searched run.
-    let keys = |points: &mut dyn Iterator<Item = DVec3>| -> Vec<Vec<f64>> {
-        let points: Vec<DVec3> = points.collect();
+    let keys = |points: Vec<DVec3>| -> Vec<Vec<f64>> {
         directions
             .iter()
             .map(|d| points.iter().map(|p| d.dot(*p)).collect())
             .collect()
     };
-    let tri_keys = keys(&mut (0..scene.mesh.corners.len() as u32).map(|t| scene.mesh.centroid(t)));
-    let inst_keys = keys(&mut scene.placements.iter().map(|p| p.centre()));
+    let tri_keys = keys(
+        (0..scene.mesh.corners.len() as u32)
+            .map(|t| scene.mesh.centroid(t))
+            .collect(),
+    );
+    let inst_keys = keys(scene.placements.iter().map(|p| p.centre()).collect());
     let sorted = |keys: &[Vec<f64>]| {
         let n = keys.first().map_or(0, Vec::len);
         let mut order: Vec<u32> = (0..n as u32).collect();
