@@ -111,6 +111,11 @@ pub struct Placement {
 pub struct LeafPage {
     pub leaf: u32,
     pub anchor: DVec3,
+    /// The first `own_triangles` triangles and `own_placements` placements
+    /// are the leaf's own; the rest are borrowed from neighbours for
+    /// inflation (drawn into the leaf's cached image, not as geometry).
+    pub own_triangles: u32,
+    pub own_placements: u32,
     pub triangles: Vec<FlatTriangle>,
     pub placements: Vec<Placement>,
 }
@@ -145,13 +150,15 @@ impl LeafPage {
     /// The record (tag, leaf) and payload.
     pub fn encode(&self) -> (Vec<u8>, Vec<u8>) {
         let mut out = Vec::with_capacity(
-            32 + self.triangles.len() * TRIANGLE_BYTES + self.placements.len() * PLACEMENT_BYTES,
+            40 + self.triangles.len() * TRIANGLE_BYTES + self.placements.len() * PLACEMENT_BYTES,
         );
         for c in self.anchor.to_array() {
             out.extend_from_slice(&c.to_le_bytes());
         }
         put_u32(&mut out, self.triangles.len() as u32);
         put_u32(&mut out, self.placements.len() as u32);
+        put_u32(&mut out, self.own_triangles);
+        put_u32(&mut out, self.own_placements);
         put_triangles(&mut out, &self.triangles);
         for p in &self.placements {
             put_u32(&mut out, p.prototype);
@@ -169,6 +176,12 @@ impl LeafPage {
             return Err("the anchor is not finite".into());
         }
         let (t, p) = (r.u32()? as usize, r.u32()? as usize);
+        let (own_t, own_p) = (r.u32()?, r.u32()?);
+        if own_t as usize > t || own_p as usize > p {
+            return Err(format!(
+                "{own_t} own triangles of {t} or {own_p} own placements of {p}"
+            ));
+        }
         let need = t
             .checked_mul(TRIANGLE_BYTES)
             .and_then(|n| n.checked_add(p.checked_mul(PLACEMENT_BYTES)?));
@@ -195,6 +208,8 @@ impl LeafPage {
         Ok(Self {
             leaf,
             anchor,
+            own_triangles: own_t,
+            own_placements: own_p,
             triangles,
             placements,
         })

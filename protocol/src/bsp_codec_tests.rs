@@ -123,6 +123,8 @@ fn content_pages_round_trip_and_bad_ones_are_refused() {
     let leaf = LeafPage {
         leaf: 4,
         anchor: DVec3::new(1e6, 2.0, -3.0),
+        own_triangles: 2,
+        own_placements: 1,
         triangles: vec![triangle; 3],
         placements: vec![Placement {
             prototype: 0,
@@ -158,8 +160,14 @@ fn content_pages_round_trip_and_bad_ones_are_refused() {
     assert!(ContentPage::decode(&tag, &payload).is_err());
     assert!(ContentPage::decode(&record[..4], &payload).is_err());
     let mut nan = payload.clone();
-    nan[32..36].copy_from_slice(&f32::NAN.to_le_bytes());
+    nan[40..44].copy_from_slice(&f32::NAN.to_le_bytes());
     assert!(ContentPage::decode(&record, &nan).is_err());
+    // More own triangles or placements than stored: refused.
+    for at in [32, 36] {
+        let mut own = payload.clone();
+        own[at..at + 4].copy_from_slice(&9u32.to_le_bytes());
+        assert!(ContentPage::decode(&record, &own).is_err(), "{at}");
+    }
     // A count that would overflow is refused, not allocated.
     let mut huge = payload.clone();
     huge[24..28].copy_from_slice(&u32::MAX.to_le_bytes());

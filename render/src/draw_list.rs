@@ -40,6 +40,7 @@ impl Renderer {
                 image.upload_ms += pack_ms;
                 Ok(image)
             }
+            DrawList::Bsp(cut) => self.draw_bsp(hierarchy, camera, cut, style),
         }
     }
 }

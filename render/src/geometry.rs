@@ -26,6 +26,7 @@ use super::instances::{DEFAULT_COLOR, snorm16};
 use super::renderer::Renderer;
 use super::target::{color_target, depth_test};
 use super::uniform::UniformBinding;
+use crate::bsp::{GpuInstance, INSTANCE_ATTRIBUTES, Instanced, PrototypeBuffers};
 
 /// How cube faces use their coverage.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
@@ -105,10 +106,15 @@ pub(crate) struct GeometryPipelines {
     triangles: wgpu::RenderPipeline,
     faces_opaque: wgpu::RenderPipeline,
     faces_blended: wgpu::RenderPipeline,
+    /// Prototype triangles placed by per-instance transforms (BSP leaves).
+    instanced: wgpu::RenderPipeline,
     uniform: wgpu::Buffer,
     bind_group: wgpu::BindGroup,
     vertex_buffer: Option<(wgpu::Buffer, u64)>,
     face_buffer: Option<(wgpu::Buffer, u64)>,
+    instance_buffer: Option<(wgpu::Buffer, u64)>,
+    /// Prototypes' triangles, uploaded once each.
+    pub(crate) prototypes: PrototypeBuffers,
 }
 
 impl GeometryPipelines {
@@ -165,6 +171,32 @@ impl GeometryPipelines {
             step_mode: wgpu::VertexStepMode::Vertex,
             attributes: &vertex_attributes,
         };
+        let instance_layout = wgpu::VertexBufferLayout {
+            array_stride: std::mem::size_of::<GpuInstance>() as u64,
+            step_mode: wgpu::VertexStepMode::Instance,
+            attributes: &INSTANCE_ATTRIBUTES,
+        };
+        let instanced = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+            label: Some("farfield instanced triangles"),
+            layout: Some(&layout),
+            vertex: wgpu::VertexState {
+                module: &shader,
+                entry_point: Some("vs_instanced"),
+                compilation_options: Default::default(),
+                buffers: &[Some(vertex_layout()), Some(instance_layout)],
+            },
+            primitive: Default::default(),
+            depth_stencil: Some(depth_test(true)),
+            multisample: Default::default(),
+            fragment: Some(wgpu::FragmentState {
+                module: &shader,
+                entry_point: Some("fs_triangle"),
+                compilation_options: Default::default(),
+                targets: &[color_target(format, None)],
+            }),
+            multiview_mask: None,
+            cache: None,
+        });
         let face_layout = || wgpu::VertexBufferLayout {
             array_stride: std::mem::size_of::<GpuFace>() as u64,
             step_mode: wgpu::VertexStepMode::Instance,
@@ -205,10 +237,13 @@ impl GeometryPipelines {
             triangles,
             faces_opaque,
             faces_blended,
+            instanced,
             uniform,
             bind_group,
             vertex_buffer: None,
             face_buffer: None,
+            instance_buffer: None,
+            prototypes: PrototypeBuffers::default(),
         })
     }
 }
@@ -292,6 +327,27 @@ impl Renderer {
         coverage: Coverage,
         background: [u8; 3],
     ) -> anyhow::Result<RenderOutput> {
+        self.render_geometry_with(
+            camera,
+            vertices,
+            faces,
+            &Instanced::default(),
+            coverage,
+            background,
+        )
+    }
+
+    /// [`Self::render_geometry`], and prototypes placed by `instanced`
+    /// (their buffers made by [`Self::prototype_buffer`]).
+    pub(crate) fn render_geometry_with(
+        &mut self,
+        camera: &Camera,
+        vertices: &[GpuVertex],
+        faces: &[FaceDraw],
+        instanced: &Instanced,
+        coverage: Coverage,
+        background: [u8; 3],
+    ) -> anyhow::Result<RenderOutput> {
         let (width, height) = self.size();
         ensure!(
             (camera.width, camera.height) == (width, height),
@@ -303,7 +359,10 @@ impl Renderer {
         let view = camera.view(1.0);
         let mut gpu_faces = Vec::with_capacity(faces.len());
         pack_faces(faces, camera.eye, coverage, &mut gpu_faces);
-        let near = near_plane(vertices, &gpu_faces, &view);
+        let near = near_plane_of(
+            vertex_and_face_depths(vertices, &gpu_faces, &view)
+                .chain(instanced.depths.iter().copied()),
+        );
         let light = shading::light_dir();
         let v4 = |v: DVec3| [v.x as f32, v.y as f32, v.z as f32, 0.0];
         let uniform = GeometryUniform {
@@ -325,7 +384,13 @@ impl Renderer {
             .write_buffer(&pipes.uniform, 0, bytemuck::bytes_of(&uniform));
         let vertex_bytes: &[u8] = bytemuck::cast_slice(vertices);
         let face_bytes: &[u8] = bytemuck::cast_slice(&gpu_faces);
+        let instance_bytes: &[u8] = bytemuck::cast_slice(&instanced.instances);
         let limit = gpu.device.limits().max_buffer_size;
+        ensure!(
+            (instance_bytes.len() as u64) <= limit,
+            "{} instances exceed this adapter's largest buffer ({limit} bytes)",
+            instanced.instances.len()
+        );
         ensure!(
             (vertex_bytes.len() as u64) <= limit && (face_bytes.len() as u64) <= limit,
             "{} triangles or {} faces exceed this adapter's largest buffer ({limit} bytes)",
@@ -346,6 +411,13 @@ impl Renderer {
             face_bytes,
             "farfield faces",
         );
+        upload(
+            &gpu.device,
+            &gpu.queue,
+            &mut pipes.instance_buffer,
+            instance_bytes,
+            "farfield instances",
+        );
         let upload_ms = started.elapsed().as_secs_f64() * 1e3;
 
         let started = Instant::now();
@@ -363,6 +435,19 @@ impl Renderer {
                 pass.set_vertex_buffer(0, buffer.slice(..vertex_bytes.len() as u64));
                 pass.draw(0..vertices.len() as u32, 0..1);
             }
+            if let (Some((buffer, _)), false) =
+                (&pipes.instance_buffer, instanced.instances.is_empty())
+            {
+                pass.set_pipeline(&pipes.instanced);
+                pass.set_vertex_buffer(1, buffer.slice(..instance_bytes.len() as u64));
+                for batch in &instanced.batches {
+                    let Some((prototype, corners)) = pipes.prototypes.get(batch.prototype) else {
+                        continue;
+                    };
+                    pass.set_vertex_buffer(0, prototype.slice(..));
+                    pass.draw(0..corners, batch.first..batch.first + batch.count);
+                }
+            }
             if let (Some((buffer, _)), false) = (&pipes.face_buffer, gpu_faces.is_empty()) {
                 pass.set_pipeline(match coverage {
                     Coverage::Threshold(_) => &pipes.faces_opaque,
@@ -376,9 +461,10 @@ impl Renderer {
         let draw_ms = started.elapsed().as_secs_f64() * 1e3;
         if let Some(e) = scope.pop() {
             bail!(
-                "rendering {} triangles and {} faces: {e}",
+                "rendering {} triangles, {} faces and {} instances: {e}",
                 vertices.len() / 3,
-                faces.len()
+                faces.len(),
+                instanced.instances.len()
             );
         }
         Ok(RenderOutput {
@@ -424,28 +510,26 @@ pub(crate) fn upload(
     }
 }
 
-/// The near plane: a little in front of the nearest vertex or face corner
-/// ahead of the eye, but at least 1e-6 of the farthest depth (geometry
-/// around the eye is clipped there, which is the best reversed Z can do).
-fn near_plane(
-    vertices: &[GpuVertex],
-    faces: &[GpuFace],
+/// Depths (along the view direction) of the vertices and of the faces'
+/// nearest and farthest reach.
+fn vertex_and_face_depths<'a>(
+    vertices: &'a [GpuVertex],
+    faces: &'a [GpuFace],
     view: &farfield_protocol::camera::View,
-) -> f64 {
+) -> impl Iterator<Item = f64> + 'a {
     let f = view.forward;
-    let depth = |p: [f32; 3]| f64::from(p[0]) * f.x + f64::from(p[1]) * f.y + f64::from(p[2]) * f.z;
+    let depth =
+        move |p: [f32; 3]| f64::from(p[0]) * f.x + f64::from(p[1]) * f.y + f64::from(p[2]) * f.z;
     // The face's corner nearest the eye is within a diagonal of it.
-    let face_depths = faces.iter().flat_map(|g| {
+    let face_depths = faces.iter().flat_map(move |g| {
         let d = depth(g.min_corner);
         let reach = f64::from(g.edge) * 3f64.sqrt();
         [d - reach, d + reach]
     });
-    near_plane_of(
-        vertices
-            .iter()
-            .map(|v| depth(v.position))
-            .chain(face_depths),
-    )
+    vertices
+        .iter()
+        .map(move |v| depth(v.position))
+        .chain(face_depths)
 }
 
 /// The near plane for triangles alone (the item buffer's, which must draw
@@ -454,11 +538,13 @@ pub(crate) fn triangles_near_plane(
     vertices: &[GpuVertex],
     view: &farfield_protocol::camera::View,
 ) -> f64 {
-    near_plane(vertices, &[], view)
+    near_plane_of(vertex_and_face_depths(vertices, &[], view))
 }
 
-/// Half the nearest positive depth, at least 1e-6 of the farthest; 1
-/// with nothing ahead.
+/// The near plane: half the nearest positive depth of what is drawn (a
+/// little in front of it), but at least 1e-6 of the farthest (geometry
+/// around the eye is clipped there, which is the best reversed Z can do);
+/// 1 with nothing ahead.
 fn near_plane_of(depths: impl Iterator<Item = f64>) -> f64 {
     let (mut nearest, mut farthest) = (f64::INFINITY, 0.0f64);
     for d in depths {

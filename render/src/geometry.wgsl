@@ -66,6 +66,28 @@ fn vs_triangle(v: TriangleIn) -> TriangleOut {
     return out;
 }
 
+// A placed prototype's corner: the prototype's own frame, carried by the
+// instance's linear part and its camera-relative translation.
+struct InstanceIn {
+    @location(3) x_axis: vec3<f32>,
+    @location(4) y_axis: vec3<f32>,
+    @location(5) z_axis: vec3<f32>,
+    @location(6) translation: vec3<f32>,
+};
+
+@vertex
+fn vs_instanced(v: TriangleIn, i: InstanceIn) -> TriangleOut {
+    let p = i.x_axis * v.position.x + i.y_axis * v.position.y + i.z_axis * v.position.z
+        + i.translation;
+    var out: TriangleOut;
+    out.position = clip_of(p);
+    out.rel = p;
+    // Prototypes are flat-shaded: no stored normal to carry.
+    out.normal = vec4<f32>(0.0);
+    out.color = v.color.rgb;
+    return out;
+}
+
 @fragment
 fn fs_triangle(i: TriangleOut) -> @location(0) vec4<f32> {
     // Flat: the geometric normal from the position's derivatives, taken

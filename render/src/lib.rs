@@ -21,6 +21,7 @@
 //! - [`headless_or_skip`]: a renderer for tests, or a clear failure.
 
 mod adapter;
+mod bsp;
 mod draw_list;
 mod error_scope;
 mod geometry;
@@ -38,6 +39,7 @@ pub use adapter::{
     ALLOW_NO_GPU_ENV, BACKEND_ENV, DEVICE_SELECT_OFF, device_select_unwanted,
     quiet_device_select_when_headless,
 };
+pub use bsp::pack_bsp_leaves;
 pub use draw_list::{CubeFrame, draw_cut};
 pub use geometry::snorm4;
 pub use geometry::{Coverage, GpuVertex, pack_leaves};

@@ -9,11 +9,14 @@ use farfield_builder::cubes::{CubeOptions, build_cubes};
 use farfield_builder::import::{Params, load_input};
 use farfield_builder::plp::{PlpOptions, build_plp};
 use farfield_builder::{BuildOptions, PagedFile, build_spheres};
+use farfield_protocol::bsp_codec::Split;
 use farfield_protocol::camera::{Camera, Containment, View};
 use farfield_protocol::file::HierarchyKind;
 use farfield_protocol::hierarchy::{Hierarchy, PlpPage};
 use farfield_traverse::{DrawList, KINDS, TraversalOptions};
 use glam::DVec3;
+
+use crate::resident_where;
 
 /// A small tree scene as a file of `kind`, with pages small enough that a
 /// view needs several.
@@ -53,15 +56,6 @@ fn file_of(kind: HierarchyKind) -> PagedFile {
     }
 }
 
-/// The file with only the pages `keep` accepts resident.
-fn resident_where(file: &PagedFile, keep: impl Fn(usize) -> bool) -> Hierarchy {
-    let mut h = Hierarchy::new(file.header.clone()).expect("header");
-    for (i, page) in file.pages.iter().enumerate().filter(|&(i, _)| keep(i)) {
-        h.insert_page(i as u32, page).expect("page");
-    }
-    h
-}
-
 /// Orbits near and far, one looking past the scene's edge, one from inside.
 fn cameras(h: &Hierarchy) -> Vec<Camera> {
     let (c, r) = (h.header.root_center, h.header.root_radius);
@@ -92,6 +86,32 @@ fn drawn_spheres(h: &Hierarchy, list: DrawList<'_>) -> Vec<(DVec3, f64)> {
             .map(|f| cube(f.min, f.edge))
             .chain(cut.leaves.iter().map(|l| cube(l.min, l.edge)))
             .collect(),
+        DrawList::Bsp(cut) => {
+            let Some(s) = h.bsp_skeleton() else {
+                assert!(cut.leaves.is_empty(), "drew leaves without page 0");
+                return Vec::new();
+            };
+            let leaf_boxes = cut.leaves.iter().map(|l| {
+                let node = s
+                    .nodes
+                    .iter()
+                    .find(|n| n.split == Split::Leaf { leaf: l.leaf })
+                    .expect("a drawn leaf is in the skeleton");
+                box_sphere(node.box_min, node.box_max)
+            });
+            let instance_boxes = cut.instances.iter().map(|i| {
+                let info = &s.prototypes[(i.prototype_page - 1) as usize];
+                let corners = farfield_traverse::bsp::box_corners(info.box_min, info.box_max)
+                    .map(|c| i.world_from_local.transform_point3(c));
+                let (lo, hi) = corners
+                    .iter()
+                    .fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(lo, hi), c| {
+                        (lo.min(*c), hi.max(*c))
+                    });
+                box_sphere(lo, hi)
+            });
+            leaf_boxes.chain(instance_boxes).collect()
+        }
         DrawList::Triangles(cut) => cut
             .triangles
             .iter()
@@ -116,6 +136,11 @@ fn drawn_spheres(h: &Hierarchy, list: DrawList<'_>) -> Vec<(DVec3, f64)> {
             })
             .collect(),
     }
+}
+
+/// A box's bounding sphere.
+fn box_sphere(min: DVec3, max: DVec3) -> (DVec3, f64) {
+    ((min + max) * 0.5, (max - min).length() * 0.5)
 }
 
 /// A frustum a little wider than any traversal's (near plane at a

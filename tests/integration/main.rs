@@ -4,6 +4,7 @@
 mod adapter;
 mod bad_input;
 mod bench;
+mod bsp;
 mod crowd;
 mod cubes;
 mod degenerate;
@@ -55,6 +56,15 @@ pub fn build(scene: Scene) -> PagedFile {
 pub fn resident(file: &PagedFile) -> Hierarchy {
     let mut h = Hierarchy::new(file.header.clone()).expect("header");
     for (i, page) in file.pages.iter().enumerate() {
+        h.insert_page(i as u32, page).expect("page");
+    }
+    h
+}
+
+/// The file with only the pages `keep` accepts resident.
+pub fn resident_where(file: &PagedFile, keep: impl Fn(usize) -> bool) -> Hierarchy {
+    let mut h = Hierarchy::new(file.header.clone()).expect("header");
+    for (i, page) in file.pages.iter().enumerate().filter(|&(i, _)| keep(i)) {
         h.insert_page(i as u32, page).expect("page");
     }
     h

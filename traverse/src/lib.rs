@@ -14,12 +14,15 @@
 //! - [`plp`]: Prioritized-Layered Projection over a Delaunay tessellation
 //!   (triangles in solidity order within a budget), and its
 //!   centroid-sorted baseline.
+//! - [`bsp`]: hierarchical frustum culling over image caching's BSP by
+//!   gaps, leaves back to front (the baseline of the impostor cache).
 //! - [`impostors`]: hierarchical image caching's error metric and safety
 //!   zones (the cache and its walk to come).
 //! - [`wanted`]: the pages a traversal asks for and the pages it read.
 //!
 //! A new kind is a new module with a [`Registered`] entry in [`KINDS`].
 
+pub mod bsp;
 pub mod budget;
 pub mod cubes;
 pub mod impostors;
@@ -69,6 +72,8 @@ pub enum DrawList<'a> {
     Cubes(&'a cubes::CubeCut),
     /// Triangles stored in the hierarchy's resident pages (PLP).
     Triangles(&'a plp::PlpCut),
+    /// BSP leaves' own triangles and placed prototypes, back to front.
+    Bsp(&'a bsp::BspCut),
 }
 
 /// How much of the hierarchy one traversal looked at.
@@ -124,6 +129,7 @@ pub const KINDS: &[Registered] = &[
     cubes::REGISTERED,
     plp::REGISTERED,
     plp::CENTROID,
+    bsp::CULLING,
 ];
 
 /// The traversal for a file of `kind`.
@@ -151,6 +157,7 @@ mod tests {
             HierarchyKind::Spheres,
             HierarchyKind::Cubes,
             HierarchyKind::Plp,
+            HierarchyKind::Bsp,
         ] {
             let first = KINDS.iter().find(|k| k.hierarchy == kind).map(|k| k.name);
             assert!(first.is_some(), "{kind:?}");

@@ -64,6 +64,7 @@ impl Settle {
         let (cube_faces_drawn, triangles_drawn) = match self.cut.draw_list() {
             Some(DrawList::Cubes(cut)) => (cut.faces.len(), cut.triangles),
             Some(DrawList::Triangles(cut)) => (0, cut.triangles.len() as u64),
+            Some(DrawList::Bsp(cut)) => (0, cut.triangles),
             _ => (0, 0),
         };
         let (width, height) = renderer.size();

@@ -16,11 +16,18 @@ use rayon::prelude::*;
 use super::objects::Collected;
 use super::split::{Leaf, Region};
 
-/// One leaf's geometry after inflation: its own and the borrowed, sorted.
+/// One leaf's geometry after inflation: its own first, then the borrowed,
+/// each part sorted. Drawn as geometry a leaf draws only its own (every
+/// triangle and placement is some leaf's own exactly once); its cached
+/// image draws both.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct Inflated {
     pub mesh: Vec<u32>,
     pub instances: Vec<u32>,
+    /// How many of `mesh` are the leaf's own.
+    pub own_mesh: usize,
+    /// How many of `instances` are the leaf's own.
+    pub own_instances: usize,
 }
 
 /// `region` grown by `fraction` of each interval's width.
@@ -86,15 +93,28 @@ pub fn inflate(
         .par_iter()
         .map(|leaf| {
             let grown = grow(&leaf.region, fraction);
-            let mut mesh = within(&tri_keys, &tri_order, &grown);
-            mesh.extend_from_slice(&leaf.mesh);
-            mesh.sort_unstable();
-            mesh.dedup();
-            let mut instances = within(&inst_keys, &inst_order, &grown);
-            instances.extend_from_slice(&leaf.instances);
-            instances.sort_unstable();
-            instances.dedup();
-            Inflated { mesh, instances }
+            let (mesh, own_mesh) =
+                own_then_borrowed(&leaf.mesh, within(&tri_keys, &tri_order, &grown));
+            let (instances, own_instances) =
+                own_then_borrowed(&leaf.instances, within(&inst_keys, &inst_order, &grown));
+            Inflated {
+                mesh,
+                instances,
+                own_mesh,
+                own_instances,
+            }
         })
         .collect()
+}
+
+/// `own` sorted, then the rest of `grown` sorted; and `own`'s length.
+fn own_then_borrowed(own: &[u32], mut grown: Vec<u32>) -> (Vec<u32>, usize) {
+    let mut list = own.to_vec();
+    list.sort_unstable();
+    list.dedup();
+    grown.sort_unstable();
+    grown.retain(|i| list.binary_search(i).is_err());
+    let n = list.len();
+    list.extend(grown);
+    (list, n)
 }

@@ -58,12 +58,15 @@ pub fn lay_out(
                         hi = hi.max(c);
                     }
                 }
-                let mut count = content.mesh.len() as u64;
-                for &p in &content.instances {
+                // Drawn as geometry, a leaf draws its own part alone.
+                let mut count = content.own_mesh as u64;
+                for (k, &p) in content.instances.iter().enumerate() {
                     let p = &scene.placements[p as usize];
                     lo = lo.min(p.box_min);
                     hi = hi.max(p.box_max);
-                    count += p.triangles;
+                    if k < content.own_instances {
+                        count += p.triangles;
+                    }
                 }
                 boxes[i] = (lo, hi);
                 triangles[i] = count;
@@ -212,6 +215,8 @@ fn leaf_page(scene: &Collected, leaf: u32, content: &Inflated) -> LeafPage {
     LeafPage {
         leaf,
         anchor,
+        own_triangles: content.own_mesh as u32,
+        own_placements: content.own_instances as u32,
         triangles: content
             .mesh
             .iter()

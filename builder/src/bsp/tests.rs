@@ -148,7 +148,7 @@ fn an_island_splits_in_the_gaps_between_trees_and_keeps_them_instances() {
                         assert!(contains(s, i, page.world(c)), "leaf {leaf}");
                     }
                 }
-                let expected = page.triangles.len() as u64 + 4 * page.placements.len() as u64;
+                let expected = u64::from(page.own_triangles) + 4 * u64::from(page.own_placements);
                 assert_eq!(n.triangles, expected);
             }
         }
@@ -170,7 +170,7 @@ fn inflation_borrows_neighbouring_geometry_and_none_stores_each_triangle_once() 
     let pages = leaf_pages(&hierarchy(&file));
     let stored: usize = pages.iter().map(|p| p.triangles.len()).sum();
     assert_eq!(stored, 32 * 32 * 2);
-    let (_, inflated) = build_bsp(
+    let (inflated_file, inflated) = build_bsp(
         &scene,
         &BspOptions {
             inflation: 0.17,
@@ -178,6 +178,14 @@ fn inflation_borrows_neighbouring_geometry_and_none_stores_each_triangle_once() 
         },
     )
     .unwrap();
+    // Inflated, every triangle and tree is still some leaf's own exactly
+    // once: drawn as geometry, nothing is drawn twice.
+    let pages = leaf_pages(&hierarchy(&inflated_file));
+    let own: usize = pages.iter().map(|p| p.own_triangles as usize).sum();
+    let own_trees: usize = pages.iter().map(|p| p.own_placements as usize).sum();
+    let stored: usize = pages.iter().map(|p| p.triangles.len()).sum();
+    assert_eq!((own, own_trees), (32 * 32 * 2, scene.instances.len() - 1));
+    assert!(stored > own, "{stored}");
     // Regions 10 wide grow by 0.85 on each side: the grid's cells are
     // 1.25 wide, so about one row of triangles on each inner side.
     assert!(
