@@ -76,9 +76,14 @@ impl PrototypeBuffers {
         self.buffers.get(&key).map(|(b, n, _)| (b, *n))
     }
 
+    /// Starts a frame: buffers not used from here on may be dropped.
+    pub fn next_frame(&mut self) {
+        self.frame += 1;
+    }
+
     /// Makes `key`'s buffer from `triangles` unless it exists; marks it
     /// used this frame.
-    fn ensure(
+    pub fn ensure(
         &mut self,
         device: &wgpu::Device,
         queue: &wgpu::Queue,
@@ -187,7 +192,7 @@ impl Renderer {
         let forward = camera.view(1.0).forward;
         let skeleton = h.bsp_skeleton();
         let (gpu, pipes, _) = self.geometry_parts()?;
-        pipes.prototypes.frame += 1;
+        pipes.prototypes.next_frame();
         let mut out = Instanced::default();
         for i in order {
             let draw = &cut.instances[i];

@@ -41,6 +41,7 @@ impl Renderer {
                 Ok(image)
             }
             DrawList::Bsp(cut) => self.draw_bsp(hierarchy, camera, cut, style),
+            DrawList::Impostors(cut) => self.draw_impostors(hierarchy, camera, cut, style),
         }
     }
 }

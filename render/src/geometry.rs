@@ -91,28 +91,56 @@ struct GpuFace {
 
 #[repr(C)]
 #[derive(Debug, Clone, Copy, Pod, Zeroable)]
-struct GeometryUniform {
+pub(crate) struct GeometryUniform {
     right: [f32; 4],
     up: [f32; 4],
     forward: [f32; 4],
     proj: [f32; 4],
     light: [f32; 4],
     params: [f32; 4],
+    /// Narrows the frustum to a window of the view: clip xy are scaled by
+    /// xy and offset by zw (times w). [`WHOLE_VIEW`] leaves it as is.
+    window: [f32; 4],
+}
+
+/// The window of the whole view.
+pub(crate) const WHOLE_VIEW: [f32; 4] = [1.0, 1.0, 0.0, 0.0];
+
+impl GeometryUniform {
+    /// The frame for `view` with near plane `near`, narrowed to `window`.
+    pub(crate) fn new(view: &farfield_protocol::camera::View, near: f64, window: [f32; 4]) -> Self {
+        let light = shading::light_dir();
+        let v4 = |v: DVec3| [v.x as f32, v.y as f32, v.z as f32, 0.0];
+        Self {
+            right: v4(view.right),
+            up: v4(view.up),
+            forward: v4(view.forward),
+            proj: [
+                (1.0 / view.tan_half_x) as f32,
+                (1.0 / view.tan_half_y) as f32,
+                near as f32,
+                0.0,
+            ],
+            light: [light.x, light.y, light.z, 0.0],
+            params: [shading::AMBIENT, shading::DIFFUSE, 0.0, 0.0],
+            window,
+        }
+    }
 }
 
 /// The triangle and face pipelines, made on first use.
 #[derive(Debug)]
 pub(crate) struct GeometryPipelines {
-    triangles: wgpu::RenderPipeline,
+    pub(crate) triangles: wgpu::RenderPipeline,
     faces_opaque: wgpu::RenderPipeline,
     faces_blended: wgpu::RenderPipeline,
     /// Prototype triangles placed by per-instance transforms (BSP leaves).
-    instanced: wgpu::RenderPipeline,
-    uniform: wgpu::Buffer,
-    bind_group: wgpu::BindGroup,
-    vertex_buffer: Option<(wgpu::Buffer, u64)>,
+    pub(crate) instanced: wgpu::RenderPipeline,
+    pub(crate) uniform: wgpu::Buffer,
+    pub(crate) bind_group: wgpu::BindGroup,
+    pub(crate) vertex_buffer: Option<(wgpu::Buffer, u64)>,
     face_buffer: Option<(wgpu::Buffer, u64)>,
-    instance_buffer: Option<(wgpu::Buffer, u64)>,
+    pub(crate) instance_buffer: Option<(wgpu::Buffer, u64)>,
     /// Prototypes' triangles, uploaded once each.
     pub(crate) prototypes: PrototypeBuffers,
 }
@@ -363,21 +391,7 @@ impl Renderer {
             vertex_and_face_depths(vertices, &gpu_faces, &view)
                 .chain(instanced.depths.iter().copied()),
         );
-        let light = shading::light_dir();
-        let v4 = |v: DVec3| [v.x as f32, v.y as f32, v.z as f32, 0.0];
-        let uniform = GeometryUniform {
-            right: v4(view.right),
-            up: v4(view.up),
-            forward: v4(view.forward),
-            proj: [
-                (1.0 / view.tan_half_x) as f32,
-                (1.0 / view.tan_half_y) as f32,
-                near as f32,
-                0.0,
-            ],
-            light: [light.x, light.y, light.z, 0.0],
-            params: [shading::AMBIENT, shading::DIFFUSE, 0.0, 0.0],
-        };
+        let uniform = GeometryUniform::new(&view, near, WHOLE_VIEW);
         let (gpu, pipes, output) = self.geometry_parts()?;
         let scope = ValidationScope::push(&gpu.device);
         gpu.queue
@@ -545,7 +559,7 @@ pub(crate) fn triangles_near_plane(
 /// little in front of it), but at least 1e-6 of the farthest (geometry
 /// around the eye is clipped there, which is the best reversed Z can do);
 /// 1 with nothing ahead.
-fn near_plane_of(depths: impl Iterator<Item = f64>) -> f64 {
+pub(crate) fn near_plane_of(depths: impl Iterator<Item = f64>) -> f64 {
     let (mut nearest, mut farthest) = (f64::INFINITY, 0.0f64);
     for d in depths {
         if d > 0.0 {

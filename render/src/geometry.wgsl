@@ -19,6 +19,9 @@ struct Frame {
     light: vec4<f32>,
     // ambient, diffuse, unused, unused
     params: vec4<f32>,
+    // A window of the view (a cache's rectangle): clip xy * window.xy +
+    // window.zw * w; (1, 1, 0, 0) for the whole view.
+    window: vec4<f32>,
 };
 
 @group(0) @binding(0) var<uniform> frame: Frame;
@@ -27,7 +30,9 @@ fn clip_of(p: vec3<f32>) -> vec4<f32> {
     let x = dot(p, frame.right.xyz);
     let y = dot(p, frame.up.xyz);
     let depth = dot(p, frame.forward.xyz);
-    return vec4<f32>(x * frame.proj.x, y * frame.proj.y, frame.proj.z, depth);
+    let xy = vec2<f32>(x * frame.proj.x, y * frame.proj.y) * frame.window.xy
+        + frame.window.zw * depth;
+    return vec4<f32>(xy, frame.proj.z, depth);
 }
 
 fn shade(base: vec3<f32>, normal: vec3<f32>, toward_viewer: vec3<f32>) -> vec3<f32> {

@@ -25,6 +25,7 @@ mod bsp;
 mod draw_list;
 mod error_scope;
 mod geometry;
+mod impostors;
 mod instances;
 mod item_buffer;
 mod output;

@@ -56,6 +56,8 @@ pub struct Renderer {
     /// The item buffer's pipeline and frame ([`Self::item_buffer`]), made
     /// when first needed.
     pub(super) item_buffer: Option<super::item_buffer::ItemBuffer>,
+    /// The image-cache atlas and quad pipeline, made when first needed.
+    impostors: Option<super::impostors::ImpostorResources>,
 }
 
 /// Where a capture's mapping result lands.
@@ -247,6 +249,7 @@ impl Renderer {
             geometry: None,
             capture: None,
             item_buffer: None,
+            impostors: None,
             gpu,
         })
     }
@@ -263,6 +266,33 @@ impl Renderer {
             Some(pipes) => Ok((&self.gpu, pipes, &self.output)),
             None => bail!("no geometry pipelines"),
         }
+    }
+
+    /// The device, the geometry pipelines, the image-cache resources (made
+    /// by the caller when missing) and the frame.
+    pub(super) fn impostor_parts(
+        &mut self,
+    ) -> anyhow::Result<(
+        &Gpu,
+        &mut GeometryPipelines,
+        &mut Option<super::impostors::ImpostorResources>,
+        &Output,
+    )> {
+        if self.geometry.is_none() {
+            let format = self.output.format();
+            self.geometry = Some(GeometryPipelines::new(&self.gpu.device, format)?);
+        }
+        let pipes = self.geometry.as_mut().context("no geometry pipelines")?;
+        Ok((&self.gpu, pipes, &mut self.impostors, &self.output))
+    }
+
+    pub(super) fn impostor_resources(&self) -> Option<&super::impostors::ImpostorResources> {
+        self.impostors.as_ref()
+    }
+
+    /// The color format frames are drawn in.
+    pub(super) fn output_format(&self) -> wgpu::TextureFormat {
+        self.output.format()
     }
 
     /// The adapter in use, e.g. `llvmpipe (LLVM 15.0.7, 256 bits) / Vulkan (...)`.

@@ -120,6 +120,11 @@ impl Target {
         }
     }
 
+    /// The color texture (a cache's scratch frame is copied from it).
+    pub fn color_texture(&self) -> &wgpu::Texture {
+        &self.color
+    }
+
     /// Records the copy of the color texture into the readback buffer.
     pub fn copy_out(&self, encoder: &mut wgpu::CommandEncoder) {
         encoder.copy_texture_to_buffer(

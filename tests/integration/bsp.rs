@@ -101,8 +101,9 @@ fn culling_draws_every_triangle_once_as_the_file_holds_it() {
     let Some(mut renderer) = farfield_render::headless_or_skip(200, 150).expect("adapter") else {
         return;
     };
-    let mut traversal = farfield_traverse::for_hierarchy(h.header.kind);
-    assert_eq!(traversal.registered().name, "culling");
+    let mut traversal = (farfield_traverse::named("culling")
+        .expect("registered")
+        .make)();
     for camera in [
         camera,
         // Low, from the shore, part of the island out of view.

@@ -13,6 +13,7 @@ use farfield_protocol::bsp_codec::Split;
 use farfield_protocol::camera::{Camera, Containment, View};
 use farfield_protocol::file::HierarchyKind;
 use farfield_protocol::hierarchy::{Hierarchy, PlpPage};
+use farfield_traverse::impostors::plan::Item;
 use farfield_traverse::{DrawList, KINDS, TraversalOptions};
 use glam::DVec3;
 
@@ -111,6 +112,30 @@ fn drawn_spheres(h: &Hierarchy, list: DrawList<'_>) -> Vec<(DVec3, f64)> {
                 box_sphere(lo, hi)
             });
             leaf_boxes.chain(instance_boxes).collect()
+        }
+        DrawList::Impostors(cut) => {
+            let Some(s) = h.bsp_skeleton() else {
+                assert!(cut.items.is_empty(), "drew without page 0");
+                return Vec::new();
+            };
+            cut.items
+                .iter()
+                .map(|item| match item {
+                    Item::Leaf { leaf, .. } => {
+                        let node = s
+                            .nodes
+                            .iter()
+                            .find(|n| n.split == Split::Leaf { leaf: *leaf })
+                            .expect("a drawn leaf is in the skeleton");
+                        box_sphere(node.box_min, node.box_max)
+                    }
+                    Item::Quad { corners, .. } => {
+                        let lo = corners.iter().fold(DVec3::INFINITY, |a, c| a.min(*c));
+                        let hi = corners.iter().fold(DVec3::NEG_INFINITY, |a, c| a.max(*c));
+                        box_sphere(lo, hi)
+                    }
+                })
+                .collect()
         }
         DrawList::Triangles(cut) => cut
             .triangles

@@ -10,6 +10,7 @@ mod cubes;
 mod degenerate;
 mod extremes;
 mod holes;
+mod impostors;
 mod kinds;
 mod layout;
 mod plp;

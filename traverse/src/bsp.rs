@@ -92,7 +92,7 @@ pub fn eye_in_front(
 
 /// A node's priority for its pages: its box's projected diameter, and how
 /// far off-centre it is.
-fn node_priority(view: &View, min: DVec3, max: DVec3) -> (f64, f64) {
+pub fn node_priority(view: &View, min: DVec3, max: DVec3) -> (f64, f64) {
     let centre = (min + max) * 0.5;
     let radius = (max - min).length() * 0.5;
     (
@@ -162,7 +162,19 @@ pub fn traverse_bsp_into(h: &Hierarchy, camera: &Camera, record_pages: bool, cut
                         pages.touch(page);
                         cut.leaves.push(LeafDraw { leaf, page });
                         cut.triangles += u64::from(content.own_triangles);
-                        add_instances(h, s, &view, content, (size, off), &mut pages, cut);
+                        let mut sink = InstanceSink {
+                            instances: &mut cut.instances,
+                            culled: 0,
+                            triangles: 0,
+                            missing: Vec::new(),
+                        };
+                        let own = content.own_placements as usize;
+                        add_instances(h, s, Some(&view), content, own, &mut pages, &mut sink);
+                        cut.frustum_culled += sink.culled;
+                        cut.triangles += sink.triangles;
+                        for page in sink.missing {
+                            pages.want(page, size, off);
+                        }
                     }
                     None => pages.want(page, size, off),
                 }
@@ -172,38 +184,53 @@ pub fn traverse_bsp_into(h: &Hierarchy, camera: &Camera, record_pages: bool, cut
     pages.finish(&mut cut.touched_pages, &mut cut.wanted);
 }
 
-/// The leaf's own placements in view: drawn when their prototype is
-/// resident, wanted otherwise.
-fn add_instances(
+/// Where a leaf's placements go: what to draw, and what is culled.
+#[derive(Debug)]
+pub struct InstanceSink<'a> {
+    pub instances: &'a mut Vec<InstanceDraw>,
+    /// Placements culled by the frustum.
+    pub culled: u64,
+    /// Triangles of the placements drawn.
+    pub triangles: u64,
+    /// Prototype pages wanted and not resident.
+    pub missing: Vec<u32>,
+}
+
+/// The leaf's first `count` placements (its own, or all of them with the
+/// borrowed): drawn when their prototype is resident and (with `view`)
+/// they are in view; their prototype pages touched, or missing.
+pub fn add_instances(
     h: &Hierarchy,
     s: &BspSkeleton,
-    view: &View,
+    view: Option<&View>,
     leaf: &LeafPage,
-    (size, off): (f64, f64),
+    count: usize,
     pages: &mut PageTracker,
-    cut: &mut BspCut,
+    sink: &mut InstanceSink,
 ) {
-    for p in leaf.placements.iter().take(leaf.own_placements as usize) {
+    for p in leaf.placements.iter().take(count) {
         let Some(info) = s.prototypes.get(p.prototype as usize) else {
             continue;
         };
         let world_from_local = p.world_from_local(leaf.anchor);
-        let corners =
-            box_corners(info.box_min, info.box_max).map(|c| world_from_local.transform_point3(c));
-        if view.all_outside(&corners) {
-            cut.frustum_culled += 1;
-            continue;
+        if let Some(view) = view {
+            let corners = box_corners(info.box_min, info.box_max)
+                .map(|c| world_from_local.transform_point3(c));
+            if view.all_outside(&corners) {
+                sink.culled += 1;
+                continue;
+            }
         }
         let page = BspSkeleton::prototype_page(p.prototype);
         if h.is_resident(page as usize) {
             pages.touch(page);
-            cut.instances.push(InstanceDraw {
+            sink.instances.push(InstanceDraw {
                 prototype_page: page,
                 world_from_local,
             });
-            cut.triangles += u64::from(info.triangles);
+            sink.triangles += u64::from(info.triangles);
         } else {
-            pages.want(page, size, off);
+            sink.missing.push(page);
         }
     }
 }

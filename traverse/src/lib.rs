@@ -16,8 +16,8 @@
 //!   centroid-sorted baseline.
 //! - [`bsp`]: hierarchical frustum culling over image caching's BSP by
 //!   gaps, leaves back to front (the baseline of the impostor cache).
-//! - [`impostors`]: hierarchical image caching's error metric and safety
-//!   zones (the cache and its walk to come).
+//! - [`impostors`]: hierarchical image caching: cached images of far
+//!   subtrees on quads, their error metric, safety zones and atlas.
 //! - [`wanted`]: the pages a traversal asks for and the pages it read.
 //!
 //! A new kind is a new module with a [`Registered`] entry in [`KINDS`].
@@ -49,6 +49,9 @@ pub struct TraversalOptions {
     pub record_pages: bool,
     /// Budgeted kinds (PLP): how many triangles a frame may draw.
     pub budget: Budget,
+    /// Image caching: what drawing and caching cost on this machine
+    /// (measured by the renderer).
+    pub costs: impostors::CostModel,
 }
 
 impl Default for TraversalOptions {
@@ -58,6 +61,7 @@ impl Default for TraversalOptions {
             min_alpha: 1,
             record_pages: false,
             budget: Budget::Unlimited,
+            costs: impostors::CostModel::UNMEASURED,
         }
     }
 }
@@ -74,6 +78,8 @@ pub enum DrawList<'a> {
     Triangles(&'a plp::PlpCut),
     /// BSP leaves' own triangles and placed prototypes, back to front.
     Bsp(&'a bsp::BspCut),
+    /// Caches to make, then leaves and cached quads, back to front.
+    Impostors(&'a impostors::ImpostorCut),
 }
 
 /// How much of the hierarchy one traversal looked at.
@@ -129,6 +135,7 @@ pub const KINDS: &[Registered] = &[
     cubes::REGISTERED,
     plp::REGISTERED,
     plp::CENTROID,
+    impostors::REGISTERED,
     bsp::CULLING,
 ];
 

@@ -13,7 +13,7 @@ pub struct WantedPage {
 /// The pages one traversal touched and wished for: what both hierarchy
 /// kinds' traversals report besides what they draw.
 #[derive(Debug)]
-pub(crate) struct PageTracker {
+pub struct PageTracker {
     /// Per page, whether the traversal read it (empty when not recorded).
     touched: Vec<bool>,
     /// Wanted page -> its highest priority.
@@ -59,7 +59,7 @@ impl PageTracker {
 }
 
 /// The wish when not even page 0 is resident.
-pub(crate) fn want_page_zero(wanted: &mut Vec<WantedPage>) {
+pub fn want_page_zero(wanted: &mut Vec<WantedPage>) {
     wanted.push(WantedPage {
         page: 0,
         priority: f64::INFINITY,

@@ -57,6 +57,8 @@ pub struct LastCut {
     /// The registered kind to draw with, when the file's hierarchy is its;
     /// otherwise the hierarchy's first.
     prefer: Option<&'static Registered>,
+    /// Image caching's cost model (measured by the renderer when set).
+    pub costs: farfield_traverse::impostors::CostModel,
 }
 
 impl LastCut {
@@ -164,6 +166,7 @@ pub fn draw_frame(
         min_alpha: style.coverage.min_alpha(),
         record_pages: true,
         budget: cut.time_budget.map_or(cut.budget, |b| b.budget()),
+        costs: cut.costs,
     };
     let time_budget = cut.time_budget;
     let traversal = cut.traversal_for(h.header.kind);

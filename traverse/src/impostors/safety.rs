@@ -123,6 +123,13 @@ impl Zone {
         max: DVec3::splat(f64::NEG_INFINITY),
     };
 
+    /// The zone that holds every eye: what geometry drawn exactly asks of
+    /// an enclosing cache.
+    pub const EVERYWHERE: Self = Self {
+        min: DVec3::splat(f64::NEG_INFINITY),
+        max: DVec3::splat(f64::INFINITY),
+    };
+
     /// The axis-aligned cube inscribed in the sphere of radius `d` round
     /// `centre` (half its side `d / √3`); empty for no radius.
     pub fn around(centre: DVec3, d: f64) -> Self {

@@ -1,0 +1,66 @@
+// Cached images on their quads (hierarchical image caching). A quad's four
+// corners arrive camera-relative (f64 on the CPU, then f32) with the
+// image's texel rectangle in the atlas; the image is premultiplied (made
+// on a transparent background), so it is blended with "one, one minus
+// source alpha" and leaves no halo. The frame uniform is the geometry
+// shader's, window included, so quads drawn into a parent's cache use
+// the parent's narrowed frustum.
+
+struct Frame {
+    right: vec4<f32>,
+    up: vec4<f32>,
+    forward: vec4<f32>,
+    proj: vec4<f32>,
+    light: vec4<f32>,
+    params: vec4<f32>,
+    window: vec4<f32>,
+};
+
+@group(0) @binding(0) var<uniform> frame: Frame;
+@group(1) @binding(0) var atlas: texture_2d<f32>;
+@group(1) @binding(1) var atlas_sampler: sampler;
+
+struct QuadIn {
+    // Top-left, top-right, bottom-left, bottom-right.
+    @location(0) c0: vec3<f32>,
+    @location(1) c1: vec3<f32>,
+    @location(2) c2: vec3<f32>,
+    @location(3) c3: vec3<f32>,
+    // u0, v0, u1, v1 in the atlas (normalized).
+    @location(4) uv: vec4<f32>,
+};
+
+struct QuadOut {
+    @builtin(position) position: vec4<f32>,
+    @location(0) uv: vec2<f32>,
+};
+
+@vertex
+fn vs_quad(@builtin(vertex_index) i: u32, q: QuadIn) -> QuadOut {
+    var p = q.c0;
+    var uv = q.uv.xy;
+    if i == 1u {
+        p = q.c1;
+        uv = vec2<f32>(q.uv.z, q.uv.y);
+    } else if i == 2u {
+        p = q.c2;
+        uv = vec2<f32>(q.uv.x, q.uv.w);
+    } else if i == 3u {
+        p = q.c3;
+        uv = q.uv.zw;
+    }
+    let x = dot(p, frame.right.xyz);
+    let y = dot(p, frame.up.xyz);
+    let depth = dot(p, frame.forward.xyz);
+    let xy = vec2<f32>(x * frame.proj.x, y * frame.proj.y) * frame.window.xy
+        + frame.window.zw * depth;
+    var out: QuadOut;
+    out.position = vec4<f32>(xy, frame.proj.z, depth);
+    out.uv = uv;
+    return out;
+}
+
+@fragment
+fn fs_quad(i: QuadOut) -> @location(0) vec4<f32> {
+    return textureSample(atlas, atlas_sampler, i.uv);
+}

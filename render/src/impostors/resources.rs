@@ -1,0 +1,188 @@
+//! The image-cache atlas, the scratch frame caches are drawn in, and the
+//! quad pipeline, made once per atlas size and view size.
+
+use std::collections::HashMap;
+
+use anyhow::{bail, ensure};
+
+use super::pack::GpuQuad;
+use crate::error_scope::ValidationScope;
+use crate::geometry::GeometryPipelines;
+use crate::target::{Target, color_target};
+
+/// The atlas, the scratch frame caches are drawn in, and the quad
+/// pipeline.
+#[derive(Debug)]
+pub(crate) struct ImpostorResources {
+    pub(super) atlas: wgpu::Texture,
+    pub(super) atlas_side: u32,
+    pub(super) scratch: Target,
+    pub(super) quad_pipeline: wgpu::RenderPipeline,
+    pub(super) uniform_group: wgpu::BindGroup,
+    pub(super) texture_group: wgpu::BindGroup,
+    pub(super) quad_buffer: Option<(wgpu::Buffer, u64)>,
+    /// Block origin -> the serial of the cache it holds.
+    pub(super) held: HashMap<(u32, u32), u64>,
+    pub(super) stale: u64,
+}
+
+impl ImpostorResources {
+    pub(super) fn new(
+        device: &wgpu::Device,
+        pipes: &GeometryPipelines,
+        format: wgpu::TextureFormat,
+        atlas_side: u32,
+        (width, height): (u32, u32),
+    ) -> anyhow::Result<Self> {
+        let limit = device.limits().max_texture_dimension_2d;
+        ensure!(
+            atlas_side <= limit,
+            "an image-cache atlas of {atlas_side} texels exceeds this adapter's largest texture ({limit})"
+        );
+        let scope = ValidationScope::push(device);
+        let atlas = device.create_texture(&wgpu::TextureDescriptor {
+            label: Some("farfield impostor atlas"),
+            size: wgpu::Extent3d {
+                width: atlas_side,
+                height: atlas_side,
+                depth_or_array_layers: 1,
+            },
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format,
+            usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+            view_formats: &[],
+        });
+        let scratch = Target::with_color(
+            device,
+            width + 2,
+            height + 2,
+            format,
+            "farfield impostor scratch",
+        );
+        let uniform_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("farfield quads uniform"),
+            entries: &[wgpu::BindGroupLayoutEntry {
+                binding: 0,
+                visibility: wgpu::ShaderStages::VERTEX_FRAGMENT,
+                ty: wgpu::BindingType::Buffer {
+                    ty: wgpu::BufferBindingType::Uniform,
+                    has_dynamic_offset: false,
+                    min_binding_size: None,
+                },
+                count: None,
+            }],
+        });
+        let texture_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("farfield quads atlas"),
+            entries: &[
+                wgpu::BindGroupLayoutEntry {
+                    binding: 0,
+                    visibility: wgpu::ShaderStages::FRAGMENT,
+                    ty: wgpu::BindingType::Texture {
+                        sample_type: wgpu::TextureSampleType::Float { filterable: true },
+                        view_dimension: wgpu::TextureViewDimension::D2,
+                        multisampled: false,
+                    },
+                    count: None,
+                },
+                wgpu::BindGroupLayoutEntry {
+                    binding: 1,
+                    visibility: wgpu::ShaderStages::FRAGMENT,
+                    ty: wgpu::BindingType::Sampler(wgpu::SamplerBindingType::Filtering),
+                    count: None,
+                },
+            ],
+        });
+        let uniform_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("farfield quads uniform"),
+            layout: &uniform_layout,
+            entries: &[wgpu::BindGroupEntry {
+                binding: 0,
+                resource: pipes.uniform.as_entire_binding(),
+            }],
+        });
+        let sampler = device.create_sampler(&wgpu::SamplerDescriptor {
+            label: Some("farfield atlas sampler"),
+            mag_filter: wgpu::FilterMode::Linear,
+            min_filter: wgpu::FilterMode::Linear,
+            ..Default::default()
+        });
+        let view = atlas.create_view(&Default::default());
+        let texture_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("farfield quads atlas"),
+            layout: &texture_layout,
+            entries: &[
+                wgpu::BindGroupEntry {
+                    binding: 0,
+                    resource: wgpu::BindingResource::TextureView(&view),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 1,
+                    resource: wgpu::BindingResource::Sampler(&sampler),
+                },
+            ],
+        });
+        let layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("farfield quads"),
+            bind_group_layouts: &[Some(&uniform_layout), Some(&texture_layout)],
+            immediate_size: 0,
+        });
+        let shader = device.create_shader_module(wgpu::include_wgsl!("quads.wgsl"));
+        let attributes = wgpu::vertex_attr_array![
+            0 => Float32x3, 1 => Float32x3, 2 => Float32x3, 3 => Float32x3, 4 => Float32x4
+        ];
+        let quad_pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+            label: Some("farfield quads"),
+            layout: Some(&layout),
+            vertex: wgpu::VertexState {
+                module: &shader,
+                entry_point: Some("vs_quad"),
+                compilation_options: Default::default(),
+                buffers: &[Some(wgpu::VertexBufferLayout {
+                    array_stride: std::mem::size_of::<GpuQuad>() as u64,
+                    step_mode: wgpu::VertexStepMode::Instance,
+                    attributes: &attributes,
+                })],
+            },
+            primitive: wgpu::PrimitiveState {
+                topology: wgpu::PrimitiveTopology::TriangleStrip,
+                ..Default::default()
+            },
+            depth_stencil: Some(wgpu::DepthStencilState {
+                format: crate::target::DEPTH_FORMAT,
+                depth_write_enabled: Some(false),
+                depth_compare: Some(wgpu::CompareFunction::Always),
+                stencil: Default::default(),
+                bias: Default::default(),
+            }),
+            multisample: Default::default(),
+            fragment: Some(wgpu::FragmentState {
+                module: &shader,
+                entry_point: Some("fs_quad"),
+                compilation_options: Default::default(),
+                targets: &[color_target(
+                    format,
+                    Some(wgpu::BlendState::PREMULTIPLIED_ALPHA_BLENDING),
+                )],
+            }),
+            multiview_mask: None,
+            cache: None,
+        });
+        if let Some(e) = scope.pop() {
+            bail!("creating the image-cache atlas and quad pipeline: {e}");
+        }
+        Ok(Self {
+            atlas,
+            atlas_side,
+            scratch,
+            quad_pipeline,
+            uniform_group,
+            texture_group,
+            quad_buffer: None,
+            held: HashMap::new(),
+            stale: 0,
+        })
+    }
+}
