@@ -359,6 +359,15 @@ pub struct RenderArgs {
     /// reference). The same setting as --threshold.
     #[arg(long, conflicts_with = "threshold")]
     pub eps: Option<f64>,
+    /// BSP files (image caching): the error a cached image may show, in
+    /// pixels; 0 never caches. The same setting as --threshold.
+    #[arg(long, conflicts_with_all = ["threshold", "eps"])]
+    pub epsilon_px: Option<f64>,
+    /// Draw with this registered kind where the file's hierarchy has
+    /// several: `culling` (a BSP file as geometry, the impostors'
+    /// baseline), `centroid` (PLP's baseline); default, the file's first.
+    #[arg(long)]
+    pub mode: Option<String>,
     /// Cube hierarchies: `alpha` (coverage is transparency, 1996) or
     /// `threshold[:T]` (faces covered less than T, default 0.5, are
     /// dropped, the rest drawn opaque, 1995).

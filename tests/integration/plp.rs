@@ -579,6 +579,7 @@ fn streamed_plp_at_a_budget_equals_the_file_and_fetches_less() {
         budget: BudgetSpec {
             triangles: budget,
             ms: None,
+            mode: None,
         },
     };
     for budget in [Budget::Triangles(40), Budget::Unlimited] {

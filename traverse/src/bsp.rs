@@ -243,6 +243,7 @@ pub const CULLING: crate::Registered = crate::Registered {
     params: &["threshold"],
     reference_threshold_px: 0.0,
     reference: "every leaf in view as geometry",
+    adaptive_threshold: false,
     make: || Box::new(CullingTraversal::default()),
 };
 

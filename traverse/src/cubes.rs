@@ -336,6 +336,8 @@ pub const REGISTERED: crate::Registered = crate::Registered {
     params: &["eps", "coverage"],
     reference_threshold_px: 0.0,
     reference: "the cube hierarchy's geometry (eps 0)",
+
+    adaptive_threshold: true,
     make: || Box::new(CubeTraversal::default()),
 };
 

@@ -124,7 +124,18 @@ pub struct Registered {
     pub reference_threshold_px: f64,
     /// That reference in words, for tables.
     pub reference: &'static str,
+    /// Whether the threshold is a level of detail a frame loop may coarsen
+    /// and refine (splat size, eps); `false` where it is an error bound
+    /// every frame must hold (image caching's ε) or is not read.
+    pub adaptive_threshold: bool,
     pub make: fn() -> Box<dyn Traversal>,
+}
+
+/// Kinds are one per name.
+impl PartialEq for Registered {
+    fn eq(&self, other: &Self) -> bool {
+        self.name == other.name
+    }
 }
 
 /// Every kind this client can draw. The first entry for a hierarchy kind

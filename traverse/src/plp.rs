@@ -576,6 +576,7 @@ pub const REGISTERED: crate::Registered = crate::Registered {
     params: &["budget"],
     reference_threshold_px: 0.0,
     reference: "every triangle (budget 100%)",
+    adaptive_threshold: false,
     make: || Box::new(PlpTraversal::new(Order::Solidity)),
 };
 
@@ -586,6 +587,7 @@ pub const CENTROID: crate::Registered = crate::Registered {
     params: &["budget"],
     reference_threshold_px: 0.0,
     reference: "every triangle (budget 100%)",
+    adaptive_threshold: false,
     make: || Box::new(PlpTraversal::new(Order::Centroid)),
 };
 

@@ -253,6 +253,8 @@ pub const REGISTERED: crate::Registered = crate::Registered {
     params: &["threshold", "kernel"],
     reference_threshold_px: 1.0,
     reference: "the sphere hierarchy at 1 px",
+
+    adaptive_threshold: true,
     make: || Box::new(SphereTraversal::default()),
 };
 

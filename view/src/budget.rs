@@ -6,12 +6,15 @@
 use farfield_traverse::Budget;
 
 /// A job's budget as the user gave it: triangles (a count or a share),
-/// or milliseconds a frame.
+/// or milliseconds a frame; and the kind to draw with where the file's
+/// hierarchy has several (`--mode culling` for a BSP file).
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct BudgetSpec {
     pub triangles: Budget,
     /// Time-critical: overrides `triangles`.
     pub ms: Option<f64>,
+    /// The registered kind to draw with, if not the file's first.
+    pub mode: Option<&'static farfield_traverse::Registered>,
 }
 
 impl BudgetSpec {
@@ -19,6 +22,9 @@ impl BudgetSpec {
     pub fn apply(&self, cut: &mut crate::frame_loop::LastCut) {
         cut.budget = self.triangles;
         cut.time_budget = self.ms.map(TimeBudget::new);
+        if let Some(kind) = self.mode {
+            cut.prefer(kind);
+        }
     }
 }
 

@@ -57,11 +57,33 @@ pub struct LastCut {
     /// The registered kind to draw with, when the file's hierarchy is its;
     /// otherwise the hierarchy's first.
     prefer: Option<&'static Registered>,
-    /// Image caching's cost model (measured by the renderer when set).
-    pub costs: farfield_traverse::impostors::CostModel,
+    /// The threshold a kind whose threshold is an error bound (image
+    /// caching's ε) keeps on every frame, whatever the loop asks while it
+    /// refines or follows a frame time.
+    pub final_threshold: Option<f64>,
+    /// Image caching's cost model, measured by the renderer before the
+    /// first frame of a BSP file (`None` until then).
+    pub costs: Option<farfield_traverse::impostors::CostModel>,
 }
 
 impl LastCut {
+    /// Draws with `kind` wherever the file's hierarchy is its.
+    pub fn prefer(&mut self, kind: &'static Registered) {
+        self.prefer = Some(kind);
+    }
+
+    /// The kind a file of hierarchy `kind` is drawn with.
+    pub fn kind_for(&self, kind: HierarchyKind) -> &'static Registered {
+        self.prefer
+            .filter(|r| r.hierarchy == kind)
+            .or_else(|| {
+                farfield_traverse::KINDS
+                    .iter()
+                    .find(|k| k.hierarchy == kind)
+            })
+            .unwrap_or(&farfield_traverse::KINDS[0])
+    }
+
     /// A cut that draws with the registered kind `kind` (PLP's centroid
     /// baseline, say) wherever the file's hierarchy is `kind`'s.
     pub fn of_kind(kind: &'static Registered) -> Self {
@@ -161,12 +183,19 @@ pub fn draw_frame(
     let Some(h) = viewer.hierarchy() else {
         bail!("no scene header yet");
     };
+    if h.header.kind == HierarchyKind::Bsp && cut.costs.is_none() {
+        cut.costs = Some(renderer.measure_impostor_costs()?);
+    }
+    let threshold = match cut.final_threshold {
+        Some(fixed) if !cut.kind_for(h.header.kind).adaptive_threshold => fixed,
+        _ => threshold,
+    };
     let options = TraversalOptions {
         threshold_px: threshold,
         min_alpha: style.coverage.min_alpha(),
         record_pages: true,
         budget: cut.time_budget.map_or(cut.budget, |b| b.budget()),
-        costs: cut.costs,
+        costs: cut.costs.unwrap_or_default(),
     };
     let time_budget = cut.time_budget;
     let traversal = cut.traversal_for(h.header.kind);

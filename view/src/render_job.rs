@@ -76,6 +76,7 @@ pub fn run(
     let mut settle = Settle::new(job.threshold_px, job.until, started, job.timeout);
     settle.keep_frames = keep_frames;
     job.budget.apply(&mut settle.cut);
+    settle.cut.final_threshold = Some(job.threshold_px);
     settle.run(&mut viewer, renderer, &style, &|h| {
         camera.resolve(h, width, height)
     })?;

@@ -43,6 +43,10 @@ pub struct RenderReport {
     /// on arrival too often), with why: their parts are drawn from coarser
     /// pages.
     pub pages_failed: Vec<FailedPage>,
+    /// Image caching (BSP files): the cost model measured at start-up,
+    /// and the last frame's caches.
+    pub impostor_costs: Option<farfield_traverse::impostors::CostModel>,
+    pub impostors: Option<farfield_traverse::impostors::plan::ImpostorStats>,
 }
 
 impl Settle {
@@ -89,6 +93,11 @@ impl Settle {
             last_draw_ms: self.last.draw_ms,
             last_error: self.error.clone().or(stats.last_error.clone()),
             pages_failed: viewer.failed_pages(),
+            impostor_costs: self.cut.costs,
+            impostors: match self.cut.draw_list() {
+                Some(DrawList::Impostors(cut)) => Some(cut.stats),
+                _ => None,
+            },
         }
     }
 }

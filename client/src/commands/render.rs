@@ -24,7 +24,14 @@ pub fn run(args: RenderArgs) -> anyhow::Result<()> {
         (_, Some(ms)) => Until::Millis(ms),
         _ => Until::Refined,
     };
-    let threshold = args.eps.unwrap_or(args.threshold);
+    let threshold = args.epsilon_px.or(args.eps).unwrap_or(args.threshold);
+    let mode = match &args.mode {
+        Some(name) => Some(farfield_traverse::named(name).with_context(|| {
+            let known: Vec<&str> = farfield_traverse::KINDS.iter().map(|k| k.name).collect();
+            format!("unknown mode {name} (known: {})", known.join(", "))
+        })?),
+        None => None,
+    };
     anyhow::ensure!(
         threshold.is_finite() && threshold >= 0.0,
         "--threshold and --eps must be non-negative numbers"
@@ -54,6 +61,7 @@ pub fn run(args: RenderArgs) -> anyhow::Result<()> {
         budget: BudgetSpec {
             triangles: args.budget,
             ms: args.budget_ms,
+            mode,
         },
     };
     let mut renderer =

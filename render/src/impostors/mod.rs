@@ -17,6 +17,7 @@
 //! block holds another (counted in [`Renderer::stale_quads`]): never
 //! another node's image.
 
+mod calibrate;
 mod pack;
 mod resources;
 
@@ -128,7 +129,8 @@ fn make_cache(
     job: &CacheJob,
 ) -> anyhow::Result<()> {
     let FrameInput { camera, cut, .. } = input;
-    let [x, y, rw, rh] = job.rect;
+    let [x, y] = [job.rect[0], job.rect[1]];
+    let [rw, rh] = [job.rect[2], job.rect[3]].map(|v| v.max(1) as u32);
     let (w, hgt) = (
         f64::from(camera.width.max(1)),
         f64::from(camera.height.max(1)),
@@ -168,56 +170,12 @@ fn make_cache(
             label: Some("farfield make cache"),
         });
     {
-        let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
-            label: Some("farfield make cache"),
-            color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                view: &res.scratch.color_view,
-                depth_slice: None,
-                resolve_target: None,
-                ops: wgpu::Operations {
-                    load: wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT),
-                    store: wgpu::StoreOp::Store,
-                },
-            })],
-            depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
-                view: &res.scratch.depth_view,
-                depth_ops: Some(wgpu::Operations {
-                    load: wgpu::LoadOp::Clear(0.0),
-                    store: wgpu::StoreOp::Discard,
-                }),
-                stencil_ops: None,
-            }),
-            timestamp_writes: None,
-            occlusion_query_set: None,
-            multiview_mask: None,
-        });
+        let mut pass = res.scratch_pass(&mut encoder);
         pass.set_viewport(1.0, 1.0, rw as f32, rh as f32, 0.0, 1.0);
         pass.set_scissor_rect(1, 1, rw, rh);
         encode(&mut pass, pipes, Some(res), &seq);
     }
-    encoder.copy_texture_to_texture(
-        wgpu::TexelCopyTextureInfo {
-            texture: res.scratch.color_texture(),
-            mip_level: 0,
-            origin: wgpu::Origin3d::ZERO,
-            aspect: wgpu::TextureAspect::All,
-        },
-        wgpu::TexelCopyTextureInfo {
-            texture: &res.atlas,
-            mip_level: 0,
-            origin: wgpu::Origin3d {
-                x: job.block.x,
-                y: job.block.y,
-                z: 0,
-            },
-            aspect: wgpu::TextureAspect::All,
-        },
-        wgpu::Extent3d {
-            width: rw + 2,
-            height: rh + 2,
-            depth_or_array_layers: 1,
-        },
-    );
+    res.copy_to_atlas(&mut encoder, (job.block.x, job.block.y), rw + 2, rh + 2);
     // Submitted now: the next cache rewrites the uniform and buffers.
     gpu.queue.submit([encoder.finish()]);
     res.held.insert((job.block.x, job.block.y), job.serial);

@@ -31,9 +31,9 @@ pub(super) struct FrameInput<'a> {
 pub(super) struct GpuQuad {
     /// Camera-relative corners: top-left, top-right, bottom-left,
     /// bottom-right.
-    corners: [[f32; 3]; 4],
+    pub corners: [[f32; 3]; 4],
     /// The image in the atlas: u0, v0, u1, v1.
-    uv: [f32; 4],
+    pub uv: [f32; 4],
 }
 
 /// One draw of a sequence, in order.

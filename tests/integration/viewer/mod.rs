@@ -127,6 +127,7 @@ impl PlpRows {
         let budget = BudgetSpec {
             triangles: Budget::Percent(Self::PERCENT),
             ms: None,
+            mode: None,
         };
         let budgeted = reference_on_budget(&file, camera, size, budget)?;
         let whole = reference(&file, camera, size.0, size.1)?;

@@ -171,7 +171,7 @@ pub fn hierarchy_settings(
     for (param, value) in settings {
         let (param, value) = (param.as_str(), value.as_str());
         match param {
-            "threshold" | "eps" => {
+            "threshold" | "eps" | "epsilon" => {
                 threshold = value
                     .parse::<f64>()
                     .ok()

@@ -35,6 +35,7 @@ pub const REGISTERED: crate::Registered = crate::Registered {
     // ε = 0 never caches: the culling baseline's image.
     reference_threshold_px: 0.0,
     reference: "every leaf in view as geometry (epsilon 0)",
+    adaptive_threshold: false,
     make: || Box::new(ImpostorTraversal::default()),
 };
 

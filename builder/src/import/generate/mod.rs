@@ -107,23 +107,7 @@ pub fn generate(name: &str, params: &Params) -> Result<Scene, ImportError> {
                 )?,
             ))
         }
-        "island" => {
-            let p = Reader::new(name, params, &ISLAND_KEYS)?;
-            let island = island::IslandParams {
-                seed: p.get("seed", 1u64)?,
-                trees: p.range("trees", 16, 0, 10_000_000)?,
-                size: p.range("size", 512, 2, 16_384)?,
-                tree_triangles: p.range(
-                    "tree_triangles",
-                    20_000,
-                    tree::MIN_TRIANGLES,
-                    tree::MAX_TRIANGLES,
-                )?,
-                extent: p.range("extent", 1000.0, 1e-3, 1e9)?,
-                height: p.range("height", 80.0, 1e-3, 1e7)?,
-            };
-            Ok(island::island(&island))
-        }
+        "island" => Ok(island::island(&island_params(params)?)),
         "city" => Ok(city::city(&city_params(params)?)),
         "cars" => Ok(cars::cars(&cars_params(params)?)),
         _ => Err(unknown_generator(name)),
@@ -139,6 +123,24 @@ fn unknown_generator(name: &str) -> ImportError {
             GENERATORS.map(|g| format!("gen:{g}")).join(", ")
         ),
     }
+}
+
+/// `gen:island`'s params, shared by the scene and its camera path.
+fn island_params(params: &Params) -> Result<island::IslandParams, ImportError> {
+    let p = Reader::new("island", params, &ISLAND_KEYS)?;
+    Ok(island::IslandParams {
+        seed: p.get("seed", 1u64)?,
+        trees: p.range("trees", 16, 0, 10_000_000)?,
+        size: p.range("size", 512, 2, 16_384)?,
+        tree_triangles: p.range(
+            "tree_triangles",
+            20_000,
+            tree::MIN_TRIANGLES,
+            tree::MAX_TRIANGLES,
+        )?,
+        extent: p.range("extent", 1000.0, 1e-3, 1e9)?,
+        height: p.range("height", 80.0, 1e-3, 1e7)?,
+    })
 }
 
 /// `gen:city`'s params, shared by the scene and its camera path.
@@ -740,10 +742,10 @@ mod tests {
     }
 
     #[test]
-    fn paths_exist_for_city_and_cars_only() {
+    fn paths_exist_for_city_cars_and_island_only() {
         for g in GENERATORS {
             let has = camera_path(g, &Params::default()).expect("valid").is_some();
-            assert_eq!(has, g == "city" || g == "cars", "{g}");
+            assert_eq!(has, ["city", "cars", "island"].contains(&g), "{g}");
         }
         assert!(camera_path("meadow", &Params::default()).is_err());
         match camera_path("city", &params(&["gird=3"])) {
@@ -756,6 +758,35 @@ mod tests {
             other => panic!("expected an error, got {other:?}"),
         }
         assert!(camera_path("cars", &params(&["cars=0"])).is_err());
+    }
+
+    #[test]
+    fn the_island_walk_tracks_the_coast_then_flies_in() {
+        let keys = path("island", &["extent=1000", "height=80"]);
+        check_times(&keys, paths::ISLAND_FRAMES);
+        let from_centre = |k: &PathKey| (k.eye[0].powi(2) + k.eye[1].powi(2)).sqrt();
+        // The first half stays near the coast ring (420 units out).
+        for k in &keys[..keys.len() / 2] {
+            let d = from_centre(k);
+            assert!(
+                (330.0..=440.0).contains(&d),
+                "t {}: {d} from the centre",
+                k.t
+            );
+            assert!(k.eye.iter().chain(&k.target).all(|v| v.is_finite()));
+        }
+        // It ends well inside, above the highest trees' ground.
+        let last = keys.last().expect("keys");
+        assert!(from_centre(last) < 200.0, "{}", from_centre(last));
+        assert!(last.eye[2] > 40.0);
+        // Smooth: no jump between frames longer than a few units.
+        for w in keys.windows(2) {
+            let step = DVec3::from(w[1].eye).distance(DVec3::from(w[0].eye));
+            assert!(step < 5.0, "a step of {step}");
+        }
+        // It scales with the extent.
+        let small = path("island", &["extent=100", "height=8"]);
+        assert!((from_centre(&small[0]) - from_centre(&keys[0]) / 10.0).abs() < 1e-6);
     }
 
     #[test]

@@ -11,6 +11,10 @@
 //!   so the walk stays on streets (near the city's middle) for any grid.
 //! - `gen:cars`: once round the row of cars, slightly above it, at each
 //!   azimuth at the distance where the row fills the view.
+//! - `gen:island`: the image-caching paper's walkthrough (section 5): a
+//!   uniform cubic B-spline that first tracks the coast three quarters of
+//!   the way round, looking in over the island, then flies in toward the
+//!   centre at about tree-top height; 1200 frames.
 //!
 //! Paths read the same params as their scenes (and reject the same bad
 //! ones), so `farfield path gen:city --param grid=8` fits the scene
@@ -29,6 +33,7 @@ pub const FPS: f64 = 30.0;
 /// Keyframes of the city walk and of the orbit round the cars.
 pub const CITY_FRAMES: usize = 160;
 pub const CARS_FRAMES: usize = 200;
+pub const ISLAND_FRAMES: usize = 1200;
 /// The width-to-height ratio the cars' orbit frames the row for: the
 /// renders' and benches' 4:3 sizes (640x480, 800x600, 1024x768).
 pub const ASPECT: f64 = 4.0 / 3.0;
@@ -55,6 +60,7 @@ pub fn camera_path(name: &str, params: &Params) -> Result<Option<Vec<PathKey>>, 
     match name {
         "city" => Ok(Some(city_walk(&super::city_params(params)?))),
         "cars" => Ok(Some(cars_orbit(&super::cars_params(params)?))),
+        "island" => Ok(Some(island_walk(&super::island_params(params)?))),
         _ if GENERATORS.contains(&name) => Ok(None),
         _ => Err(super::unknown_generator(name)),
     }
@@ -159,4 +165,54 @@ fn cars_orbit(p: &CarsParams) -> Vec<PathKey> {
             key(k, centre + back * (distance * 1.05), centre, fov)
         })
         .collect()
+}
+
+/// The island walkthrough (see the module docs). The control points: a
+/// ring round the coast at 0.42 of the extent from the centre and half the
+/// peak's height, then three points in toward the centre at three
+/// quarters of the peak's height (the highest trees stand at half of it,
+/// 13 units tall at most).
+fn island_walk(p: &super::island::IslandParams) -> Vec<PathKey> {
+    let (r, h) = (p.extent * 0.42, p.height);
+    let ring = |a: f64, z: f64| {
+        let (s, c) = sin_cos(a);
+        DVec3::new(c * r, s * r, z)
+    };
+    let mut points: Vec<DVec3> = (0..8)
+        .map(|k| ring(std::f64::consts::TAU * 0.75 * f64::from(k) / 7.0, h * 0.5))
+        .collect();
+    let last = points[points.len() - 1];
+    for f in [0.7, 0.45, 0.25] {
+        points.push(DVec3::new(last.x * f, last.y * f, h * 0.75));
+    }
+    let at = |u: f64| bspline(&points, u);
+    let span = (points.len() - 3) as f64;
+    (0..ISLAND_FRAMES)
+        .map(|k| {
+            let u = span * k as f64 / (ISLAND_FRAMES - 1) as f64;
+            let eye = at(u);
+            let ahead = at((u + 0.15).min(span));
+            let along = (ahead - eye).try_normalize().unwrap_or(DVec3::X);
+            // Half along the path, half in toward the centre, a little down.
+            let inward = (-DVec3::new(eye.x, eye.y, 0.0))
+                .try_normalize()
+                .unwrap_or(along);
+            let gaze = (along + inward).try_normalize().unwrap_or(along) - DVec3::Z * 0.25;
+            key(k, eye, eye + gaze * r * 0.25, 60.0)
+        })
+        .collect()
+}
+
+/// The uniform cubic B-spline of `points` at `u` in `0..=len - 3`.
+fn bspline(points: &[DVec3], u: f64) -> DVec3 {
+    let i = (u.floor() as usize).min(points.len().saturating_sub(4));
+    let t = u - i as f64;
+    let (t2, t3) = (t * t, t * t * t);
+    let b = [
+        (1.0 - t).powi(3) / 6.0,
+        (3.0 * t3 - 6.0 * t2 + 4.0) / 6.0,
+        (-3.0 * t3 + 3.0 * t2 + 3.0 * t + 1.0) / 6.0,
+        t3 / 6.0,
+    ];
+    (0..4).map(|k| points[i + k] * b[k]).sum()
 }

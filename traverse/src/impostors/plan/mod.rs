@@ -7,10 +7,11 @@
 //! draws the items.
 //!
 //! Choices where the paper is silent or where this does more:
-//! - A node is cached only when its whole screen rectangle is inside the
-//!   viewport (the paper: "if the rectangle exceeds the viewport, no image
-//!   is cached"). So no child culled by the frustum is missing from an
-//!   enclosing cache, and no corner is behind the eye.
+//! - A node is cached only when its screen rectangle is no larger than
+//!   the viewport (the paper: "if the dimensions of the rectangle exceed
+//!   those of the viewport, no image is cached") and every corner is in
+//!   front of the eye. A rectangle partly off the screen is drawn whole:
+//!   children the frustum culled are drawn into the cache as geometry.
 //! - Validity is the eye inside the cache's zone, intersected with the
 //!   zones of the children's caches it was drawn from; geometry drawn
 //!   exactly asks nothing of an enclosing cache.
@@ -136,8 +137,9 @@ pub struct CacheJob {
     pub serial: u64,
     pub block: Block,
     /// The node's rectangle on the screen, pixels: x, y (top-left, y
-    /// down), width, height; inside the viewport.
-    pub rect: [u32; 4],
+    /// down, either may be off the screen), width, height (at least 1, at
+    /// most the viewport's).
+    pub rect: [i32; 4],
     /// Its contents: `job_items[items]`, back to front.
     pub items: std::ops::Range<usize>,
 }
@@ -352,7 +354,7 @@ impl Planner {
 
 /// A node that may be cached from the current eye.
 struct Candidate {
-    rect: [u32; 4],
+    rect: [i32; 4],
     corners: [DVec3; 4],
     quad: QuadPlane,
     zone: Zone,

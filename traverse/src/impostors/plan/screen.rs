@@ -3,10 +3,12 @@
 use farfield_protocol::camera::View;
 use glam::DVec3;
 
-/// The pixels the corners cover: x, y (top-left, y down), width, height,
-/// rounded outward; `None` unless every corner is in front of the eye and
-/// the rectangle lies inside the viewport.
-pub fn screen_rect(view: &View, corners: &[DVec3]) -> Option<[u32; 4]> {
+/// The pixels the corners cover: x, y (top-left, y down; either may be
+/// off the screen), width, height, rounded outward; `None` unless every
+/// corner is in front of the eye and the rectangle is no larger than the
+/// viewport (the paper's rule: a cache is drawn at the screen's
+/// resolution, and a part off the screen is drawn into it too).
+pub fn screen_rect(view: &View, corners: &[DVec3]) -> Option<[i32; 4]> {
     let (w, h) = (f64::from(view.width), f64::from(view.height));
     let (mut x0, mut y0, mut x1, mut y1) =
         (f64::INFINITY, f64::INFINITY, -f64::INFINITY, -f64::INFINITY);
@@ -24,16 +26,17 @@ pub fn screen_rect(view: &View, corners: &[DVec3]) -> Option<[u32; 4]> {
         y1 = y1.max(y);
     }
     let (x0, y0, x1, y1) = (x0.floor(), y0.floor(), x1.ceil(), y1.ceil());
-    if !(x0 >= 0.0 && y0 >= 0.0 && x1 <= w && y1 <= h) {
+    let (rw, rh) = ((x1 - x0).max(1.0), (y1 - y0).max(1.0));
+    // In view and no larger than it: the corner is within a screen of it.
+    if !(rw <= w && rh <= h && x0.abs() <= 4.0 * w && y0.abs() <= 4.0 * h) {
         return None;
     }
-    let (rw, rh) = ((x1 - x0).max(1.0), (y1 - y0).max(1.0));
-    Some([x0 as u32, y0 as u32, rw as u32, rh as u32])
+    Some([x0 as i32, y0 as i32, rw as i32, rh as i32])
 }
 
 /// The rectangle's corners on the plane at `depth` along the view:
 /// top-left, top-right, bottom-left, bottom-right.
-pub fn quad_corners(view: &View, rect: [u32; 4], depth: f64) -> [DVec3; 4] {
+pub fn quad_corners(view: &View, rect: [i32; 4], depth: f64) -> [DVec3; 4] {
     let (w, h) = (f64::from(view.width.max(1)), f64::from(view.height.max(1)));
     let [x, y, rw, rh] = rect.map(f64::from);
     let at = |px: f64, py: f64| {

@@ -75,7 +75,7 @@ impl Planner {
         } else {
             contents
         };
-        let [_, _, rw, rh] = candidate.rect;
+        let [_, _, rw, rh] = candidate.rect.map(|v| v.max(1) as u32);
         let create = costs.create_ms(u64::from(rw) * u64::from(rh), drawn);
         let amortized = create / f64::from(candidate.life.max(1)) + costs.ms_per_quad;
         if amortized >= contents || w.made >= w.options.max_caches_per_frame {
