@@ -171,6 +171,10 @@ pub fn fly(
             path.camera_at(last_t, header, w, h)
         })?;
         let t = settle.last;
+        // A settle that drew nothing (out of time) adds no frame.
+        if settle.frame_count == 0 {
+            return Ok((stats, settle));
+        }
         let frame = before + settle.frame_count - 1;
         stats.push(stat(
             frame,
