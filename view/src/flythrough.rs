@@ -161,6 +161,9 @@ pub fn fly(
         threshold = follow_frame_time(threshold, frame_ms, job.target_frame_ms, final_threshold);
     }
     let mut settle = Settle::new(final_threshold, Until::Refined, started, job.timeout);
+    // The resting camera draws with the same kind and budget as the path.
+    job.budget.apply(&mut settle.cut);
+    settle.cut.final_threshold = Some(final_threshold);
     if job.settle {
         let last_t = job.path.duration();
         let path = job.path.clone();
