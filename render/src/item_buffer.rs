@@ -46,6 +46,8 @@ struct ItemUniform {
     proj: [f32; 4],
     light: [f32; 4],
     params: [f32; 4],
+    /// The geometry shader's window (its `Frame`, shared): the whole view.
+    window: [f32; 4],
 }
 
 /// The item pipeline, its uniform and vertex buffer, and the frame it draws
@@ -294,6 +296,7 @@ impl Renderer {
             ],
             light: [0.0; 4],
             params: [0.0; 4],
+            window: crate::geometry::WHOLE_VIEW,
         };
         // Taken out while the device is borrowed, and put back after.
         let mut slot = self.item_buffer.take();
