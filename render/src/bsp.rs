@@ -13,10 +13,13 @@
 use std::collections::HashMap;
 
 use bytemuck::{Pod, Zeroable};
+use farfield_protocol::bsp_codec::LeafPage;
 use farfield_protocol::bsp_codec::{ContentPage, FlatTriangle};
 use farfield_protocol::camera::Camera;
 use farfield_protocol::hierarchy::{BspPage, Hierarchy};
-use farfield_traverse::bsp::{BspCut, leaf_page};
+use farfield_traverse::bsp::{BspCut, InstanceDraw, box_corners, leaf_page};
+
+use crate::adapter::Gpu;
 use glam::DVec3;
 use web_time::Instant;
 
@@ -135,22 +138,68 @@ impl PrototypeBuffers {
 /// The cut's leaves' own triangles, camera-relative, appended to `out`.
 pub fn pack_bsp_leaves(h: &Hierarchy, cut: &BspCut, eye: DVec3, out: &mut Vec<GpuVertex>) {
     for l in &cut.leaves {
-        let Some(page) = leaf_page(h, l.page) else {
-            continue;
-        };
-        let origin = page.anchor - eye;
-        for t in page.triangles.iter().take(page.own_triangles as usize) {
-            for c in t.corners {
-                out.push(GpuVertex {
-                    position: (origin + DVec3::from(c.map(f64::from)))
-                        .as_vec3()
-                        .to_array(),
-                    normal: [0; 4],
-                    color: t.rgba,
-                });
-            }
+        if let Some(page) = leaf_page(h, l.page) {
+            pack_leaf(page, page.own_triangles as usize, eye, out);
         }
     }
+}
+
+/// A leaf page's first `count` triangles (its own, or all with the
+/// borrowed), camera-relative, appended to `out`. The page's anchor
+/// relative to the eye is taken in f64 once; corners are offsets from it.
+pub(crate) fn pack_leaf(page: &LeafPage, count: usize, eye: DVec3, out: &mut Vec<GpuVertex>) {
+    let origin = page.anchor - eye;
+    for t in page.triangles.iter().take(count) {
+        for c in t.corners {
+            out.push(GpuVertex {
+                position: (origin + DVec3::from(c.map(f64::from)))
+                    .as_vec3()
+                    .to_array(),
+                normal: [0; 4],
+                color: t.rgba,
+            });
+        }
+    }
+}
+
+/// One placement made ready for the GPU: its prototype's buffer made if
+/// new, its transform camera-relative, and the view depths of its box's
+/// corners appended to `depths` (the near plane must not clip it). `None`
+/// when the prototype's page is not resident.
+pub(crate) fn place(
+    gpu: &Gpu,
+    prototypes: &mut PrototypeBuffers,
+    h: &Hierarchy,
+    draw: &InstanceDraw,
+    eye: DVec3,
+    forward: DVec3,
+    depths: &mut Vec<f64>,
+) -> Option<(PrototypeKey, GpuInstance)> {
+    let page = draw.prototype_page;
+    let Some(BspPage::Content(ContentPage::Prototype(proto))) =
+        h.page(page as usize).and_then(|p| p.bsp.as_ref())
+    else {
+        return None;
+    };
+    let key = (page, h.header.pages.get(page as usize)?.checksum);
+    prototypes.ensure(&gpu.device, &gpu.queue, key, &proto.triangles);
+    let world = draw.world_from_local;
+    if let Some(info) = h
+        .bsp_skeleton()
+        .and_then(|s| s.prototypes.get(proto.prototype as usize))
+    {
+        for c in box_corners(info.box_min, info.box_max) {
+            depths.push((world.transform_point3(c) - eye).dot(forward));
+        }
+    }
+    let m = world.matrix3;
+    Some((
+        key,
+        GpuInstance {
+            columns: [m.x_axis, m.y_axis, m.z_axis].map(|c| c.as_vec3().to_array()),
+            translation: (world.translation - eye).as_vec3().to_array(),
+        },
+    ))
 }
 
 impl Renderer {
@@ -190,32 +239,22 @@ impl Renderer {
         let mut order: Vec<usize> = (0..cut.instances.len()).collect();
         order.sort_by_key(|&i| cut.instances[i].prototype_page);
         let forward = camera.view(1.0).forward;
-        let skeleton = h.bsp_skeleton();
         let (gpu, pipes, _) = self.geometry_parts()?;
         pipes.prototypes.next_frame();
         let mut out = Instanced::default();
         for i in order {
-            let draw = &cut.instances[i];
-            let page = draw.prototype_page;
-            let Some(BspPage::Content(ContentPage::Prototype(proto))) =
-                h.page(page as usize).and_then(|p| p.bsp.as_ref())
-            else {
+            let Some((key, instance)) = place(
+                gpu,
+                &mut pipes.prototypes,
+                h,
+                &cut.instances[i],
+                camera.eye,
+                forward,
+                &mut out.depths,
+            ) else {
                 continue;
             };
-            let Some(entry) = h.header.pages.get(page as usize) else {
-                continue;
-            };
-            let key = (page, entry.checksum);
-            pipes
-                .prototypes
-                .ensure(&gpu.device, &gpu.queue, key, &proto.triangles);
-            let m = draw.world_from_local.matrix3;
-            out.instances.push(GpuInstance {
-                columns: [m.x_axis, m.y_axis, m.z_axis].map(|c| c.as_vec3().to_array()),
-                translation: (draw.world_from_local.translation - camera.eye)
-                    .as_vec3()
-                    .to_array(),
-            });
+            out.instances.push(instance);
             match out.batches.last_mut() {
                 Some(b) if b.prototype == key => b.count += 1,
                 _ => out.batches.push(Batch {
@@ -223,18 +262,6 @@ impl Renderer {
                     first: out.instances.len() as u32 - 1,
                     count: 1,
                 }),
-            }
-            if let Some(info) = skeleton.and_then(|s| s.prototypes.get(proto.prototype as usize)) {
-                let centre = draw
-                    .world_from_local
-                    .transform_point3((info.box_min + info.box_max) * 0.5);
-                let scale = [m.x_axis, m.y_axis, m.z_axis]
-                    .map(DVec3::length)
-                    .into_iter()
-                    .fold(0.0, f64::max);
-                let radius = (info.box_max - info.box_min).length() * 0.5 * scale;
-                let depth = (centre - camera.eye).dot(forward);
-                out.depths.extend([depth - radius, depth + radius]);
             }
         }
         Ok(out)

@@ -138,6 +138,8 @@ pub(crate) struct GeometryPipelines {
     pub(crate) instanced: wgpu::RenderPipeline,
     pub(crate) uniform: wgpu::Buffer,
     pub(crate) bind_group: wgpu::BindGroup,
+    /// The uniform's group layout: group 0 of the image caches' quads too.
+    pub(crate) bind_layout: wgpu::BindGroupLayout,
     pub(crate) vertex_buffer: Option<(wgpu::Buffer, u64)>,
     face_buffer: Option<(wgpu::Buffer, u64)>,
     pub(crate) instance_buffer: Option<(wgpu::Buffer, u64)>,
@@ -152,6 +154,7 @@ impl GeometryPipelines {
         let UniformBinding {
             buffer: uniform,
             bind_group,
+            bind_layout,
             pipeline_layout: layout,
         } = UniformBinding::new(
             device,
@@ -268,6 +271,7 @@ impl GeometryPipelines {
             instanced,
             uniform,
             bind_group,
+            bind_layout,
             vertex_buffer: None,
             face_buffer: None,
             instance_buffer: None,
@@ -376,13 +380,7 @@ impl Renderer {
         coverage: Coverage,
         background: [u8; 3],
     ) -> anyhow::Result<RenderOutput> {
-        let (width, height) = self.size();
-        ensure!(
-            (camera.width, camera.height) == (width, height),
-            "camera is {}x{} but the renderer is {width}x{height}; resize it first",
-            camera.width,
-            camera.height
-        );
+        let (width, height) = self.size_for(camera)?;
         let started = Instant::now();
         let view = camera.view(1.0);
         let mut gpu_faces = Vec::with_capacity(faces.len());

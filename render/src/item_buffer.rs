@@ -19,7 +19,7 @@ use farfield_protocol::camera::Camera;
 use super::GpuVertex;
 use super::adapter::Gpu;
 use super::error_scope::ValidationScope;
-use super::geometry::{triangles_near_plane, upload};
+use super::geometry::{GeometryUniform, WHOLE_VIEW, triangles_near_plane, upload};
 use super::renderer::Renderer;
 use super::target::{Target, color_target, depth_test};
 use super::uniform::UniformBinding;
@@ -33,21 +33,6 @@ const ITEM_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::R32Uint;
 struct ItemVertex {
     position: [f32; 3],
     item: u32,
-}
-
-/// `geometry.wgsl`'s `Frame`, of which the item shader reads the axes and
-/// the projection; light and shading parameters stay zero.
-#[repr(C)]
-#[derive(Debug, Clone, Copy, Pod, Zeroable)]
-struct ItemUniform {
-    right: [f32; 4],
-    up: [f32; 4],
-    forward: [f32; 4],
-    proj: [f32; 4],
-    light: [f32; 4],
-    params: [f32; 4],
-    /// The geometry shader's window (its `Frame`, shared): the whole view.
-    window: [f32; 4],
 }
 
 /// The item pipeline, its uniform and vertex buffer, and the frame it draws
@@ -82,9 +67,10 @@ impl ItemBuffer {
             buffer: uniform,
             bind_group,
             pipeline_layout: layout,
+            ..
         } = UniformBinding::new(
             device,
-            std::mem::size_of::<ItemUniform>() as u64,
+            std::mem::size_of::<GeometryUniform>() as u64,
             "farfield item buffer",
         );
         let attributes = wgpu::vertex_attr_array![0 => Float32x3, 1 => Uint32];
@@ -135,7 +121,7 @@ impl ItemBuffer {
     fn draw(
         &mut self,
         gpu: &Gpu,
-        uniform: &ItemUniform,
+        uniform: &GeometryUniform,
         width: u32,
         height: u32,
     ) -> anyhow::Result<Vec<u32>> {
@@ -252,13 +238,7 @@ impl Renderer {
         vertices: &[GpuVertex],
         ids: &[u32],
     ) -> anyhow::Result<Vec<u32>> {
-        let (width, height) = self.size();
-        ensure!(
-            (camera.width, camera.height) == (width, height),
-            "camera is {}x{} but the renderer is {width}x{height}; resize it first",
-            camera.width,
-            camera.height
-        );
+        let (width, height) = self.size_for(camera)?;
         ensure!(
             vertices.len().is_multiple_of(3),
             "{} vertices are not whole triangles (three vertices each, one of the ids per triangle)",
@@ -283,21 +263,8 @@ impl Renderer {
         // As render_geometry: `near` here only clamps View's planes.
         let view = camera.view(1.0);
         let near = triangles_near_plane(vertices, &view);
-        let v4 = |v: glam::DVec3| [v.x as f32, v.y as f32, v.z as f32, 0.0];
-        let uniform = ItemUniform {
-            right: v4(view.right),
-            up: v4(view.up),
-            forward: v4(view.forward),
-            proj: [
-                (1.0 / view.tan_half_x) as f32,
-                (1.0 / view.tan_half_y) as f32,
-                near as f32,
-                0.0,
-            ],
-            light: [0.0; 4],
-            params: [0.0; 4],
-            window: crate::geometry::WHOLE_VIEW,
-        };
+        // geometry.wgsl's own frame: the same clip-space formula.
+        let uniform = GeometryUniform::new(&view, near, WHOLE_VIEW);
         // Taken out while the device is borrowed, and put back after.
         let mut slot = self.item_buffer.take();
         let result = (|| {

@@ -198,6 +198,7 @@ impl Renderer {
             buffer: uniform,
             bind_group,
             pipeline_layout: layout,
+            ..
         } = UniformBinding::new(
             device,
             std::mem::size_of::<FrameUniform>() as u64,
@@ -295,6 +296,19 @@ impl Renderer {
         self.output.format()
     }
 
+    /// The frame's size, which `camera` must have: a camera of another
+    /// size is an error (resize first), not a stretched image.
+    pub(crate) fn size_for(&self, camera: &Camera) -> anyhow::Result<(u32, u32)> {
+        let (width, height) = self.size();
+        ensure!(
+            (camera.width, camera.height) == (width, height),
+            "camera is {}x{} but the renderer is {width}x{height}; resize it first",
+            camera.width,
+            camera.height
+        );
+        Ok((width, height))
+    }
+
     /// The adapter in use, e.g. `llvmpipe (LLVM 15.0.7, 256 bits) / Vulkan (...)`.
     pub fn adapter_description(&self) -> String {
         adapter::describe(&self.gpu.info)
@@ -334,13 +348,7 @@ impl Renderer {
         splats: &[Splat],
         style: &SplatStyle,
     ) -> anyhow::Result<RenderOutput> {
-        let (width, height) = self.size();
-        ensure!(
-            (camera.width, camera.height) == (width, height),
-            "camera is {}x{} but the renderer is {width}x{height}; resize it first",
-            camera.width,
-            camera.height
-        );
+        let (width, height) = self.size_for(camera)?;
         let scope = ValidationScope::push(&self.gpu.device);
         let started = Instant::now();
         // `near` here only clamps View's planes, which are not used.

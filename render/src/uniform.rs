@@ -6,6 +6,8 @@
 pub(crate) struct UniformBinding {
     pub buffer: wgpu::Buffer,
     pub bind_group: wgpu::BindGroup,
+    /// The group's layout, for a pipeline that binds more groups after it.
+    pub bind_layout: wgpu::BindGroupLayout,
     pub pipeline_layout: wgpu::PipelineLayout,
 }
 
@@ -47,6 +49,7 @@ impl UniformBinding {
         Self {
             buffer,
             bind_group,
+            bind_layout,
             pipeline_layout,
         }
     }

@@ -145,15 +145,14 @@ pub fn fly(
             continue;
         };
         let camera = job.path.camera_at(path_s, &header, job.width, job.height);
-        // An error bound (image caching's ε) is held, not traded for time.
-        if !cut.kind_for(header.kind).adaptive_threshold {
-            threshold = final_threshold;
-        }
         let t = Instant::now();
         let times = draw_frame(
             viewer, renderer, &camera, threshold, &job.style, &mut cut, &mut rgba,
         )?;
         let frame_ms = t.elapsed().as_secs_f64() * 1e3;
+        // What the frame was drawn at (an error bound is held, not traded
+        // for time).
+        threshold = times.threshold_px;
         stats.push(stat(
             frame, path_s, started, threshold, &cut, viewer, times, frame_ms, false,
         ));

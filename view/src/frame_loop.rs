@@ -41,6 +41,9 @@ pub struct FrameTimes {
     pub traverse_ms: f64,
     pub upload_ms: f64,
     pub draw_ms: f64,
+    /// The threshold the frame was drawn at: the one asked for, or the
+    /// final one for a kind whose threshold is an error bound it holds.
+    pub threshold_px: f64,
 }
 
 /// The last traversal, of whichever kind the scene is: made from the
@@ -221,6 +224,7 @@ pub fn draw_frame(
         cut.time_budget = Some(b);
     }
     Ok(FrameTimes {
+        threshold_px: threshold,
         traverse_ms,
         upload_ms: image.upload_ms,
         draw_ms: image.draw_ms,
@@ -310,6 +314,8 @@ impl Settle {
                 &mut self.cut,
                 &mut self.rgba,
             )?;
+            // A kind that holds its final threshold is refined at once.
+            self.threshold = self.last.threshold_px;
             self.frame_count += 1;
             if self.time_to_first_image_ms.is_none() {
                 self.time_to_first_image_ms = Some(self.started.elapsed().as_secs_f64() * 1e3);

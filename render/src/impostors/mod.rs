@@ -43,13 +43,7 @@ impl Renderer {
         cut: &ImpostorCut,
         style: &SplatStyle,
     ) -> anyhow::Result<RenderOutput> {
-        let (width, height) = self.size();
-        ensure!(
-            (camera.width, camera.height) == (width, height),
-            "camera is {}x{} but the renderer is {width}x{height}; resize it first",
-            camera.width,
-            camera.height
-        );
+        let (width, height) = self.size_for(camera)?;
         let started = Instant::now();
         let format = self.output_format();
         let (gpu, pipes, slot, output) = self.impostor_parts()?;

@@ -4,9 +4,8 @@
 use std::ops::Range;
 
 use bytemuck::{Pod, Zeroable};
-use farfield_protocol::bsp_codec::ContentPage;
 use farfield_protocol::camera::Camera;
-use farfield_protocol::hierarchy::{BspPage, Hierarchy};
+use farfield_protocol::hierarchy::Hierarchy;
 use farfield_traverse::bsp::leaf_page;
 use farfield_traverse::impostors::plan::{ImpostorCut, Item};
 use glam::DVec3;
@@ -14,7 +13,7 @@ use glam::DVec3;
 use super::ImpostorResources;
 use crate::GpuVertex;
 use crate::adapter::Gpu;
-use crate::bsp::{GpuInstance, PrototypeKey};
+use crate::bsp::{GpuInstance, PrototypeKey, pack_leaf, place};
 use crate::geometry::{GeometryPipelines, upload};
 
 /// What a sequence is packed from.
@@ -88,57 +87,33 @@ pub(super) fn pack(
                 } else {
                     content.own_triangles as usize
                 };
-                let first = seq.vertices.len() as u32;
-                let origin = content.anchor - eye;
-                for t in content.triangles.iter().take(count) {
-                    for c in t.corners {
-                        let p = origin + DVec3::from(c.map(f64::from));
-                        seq.depths.push(p.dot(forward));
-                        seq.vertices.push(GpuVertex {
-                            position: p.as_vec3().to_array(),
-                            normal: [0; 4],
-                            color: t.rgba,
-                        });
-                    }
-                }
-                if seq.vertices.len() as u32 > first {
+                let first = seq.vertices.len();
+                pack_leaf(content, count, eye, &mut seq.vertices);
+                let f = forward.as_vec3();
+                seq.depths.extend(
+                    seq.vertices[first..]
+                        .iter()
+                        .map(|v| f64::from(glam::Vec3::from(v.position).dot(f))),
+                );
+                if seq.vertices.len() > first {
                     seq.steps
-                        .push(Step::Triangles(first..seq.vertices.len() as u32));
+                        .push(Step::Triangles(first as u32..seq.vertices.len() as u32));
                 }
                 let range = instances.start as usize..instances.end as usize;
                 for draw in cut.instances.get(range).unwrap_or(&[]) {
-                    let page = draw.prototype_page;
-                    let Some(BspPage::Content(ContentPage::Prototype(proto))) =
-                        h.page(page as usize).and_then(|p| p.bsp.as_ref())
-                    else {
+                    let Some((key, instance)) = place(
+                        gpu,
+                        &mut pipes.prototypes,
+                        h,
+                        draw,
+                        eye,
+                        forward,
+                        &mut seq.depths,
+                    ) else {
                         continue;
                     };
-                    let Some(entry) = h.header.pages.get(page as usize) else {
-                        continue;
-                    };
-                    let key = (page, entry.checksum);
-                    pipes
-                        .prototypes
-                        .ensure(&gpu.device, &gpu.queue, key, &proto.triangles);
-                    let m = draw.world_from_local.matrix3;
-                    seq.instances.push(GpuInstance {
-                        columns: [m.x_axis, m.y_axis, m.z_axis].map(|c| c.as_vec3().to_array()),
-                        translation: (draw.world_from_local.translation - eye)
-                            .as_vec3()
-                            .to_array(),
-                    });
+                    seq.instances.push(instance);
                     let i = seq.instances.len() as u32 - 1;
-                    if let Some(info) = h
-                        .bsp_skeleton()
-                        .and_then(|s| s.prototypes.get(proto.prototype as usize))
-                    {
-                        let corners =
-                            farfield_traverse::bsp::box_corners(info.box_min, info.box_max);
-                        for c in corners {
-                            seq.depths
-                                .push(depth(draw.world_from_local.transform_point3(c)));
-                        }
-                    }
                     match seq.steps.last_mut() {
                         Some(Step::Instances {
                             prototype,
@@ -255,7 +230,7 @@ pub(super) fn encode(
                     continue;
                 };
                 pass.set_pipeline(&res.quad_pipeline);
-                pass.set_bind_group(0, &res.uniform_group, &[]);
+                pass.set_bind_group(0, &pipes.bind_group, &[]);
                 pass.set_bind_group(1, &res.texture_group, &[]);
                 pass.set_vertex_buffer(0, buffer.slice(..));
                 pass.draw(0..4, *i..*i + 1);

@@ -2,21 +2,13 @@
 // corners arrive camera-relative (f64 on the CPU, then f32) with the
 // image's texel rectangle in the atlas; the image is premultiplied (made
 // on a transparent background), so it is blended with "one, one minus
-// source alpha" and leaves no halo. The frame uniform is the geometry
-// shader's, window included, so quads drawn into a parent's cache use
-// the parent's narrowed frustum.
+// source alpha" and leaves no halo.
+//
+// This file is appended to geometry.wgsl when the module is made
+// (resources.rs), so `frame` (window included: quads drawn into a
+// parent's cache use its narrowed frustum) and `clip_of` are the
+// triangles' own.
 
-struct Frame {
-    right: vec4<f32>,
-    up: vec4<f32>,
-    forward: vec4<f32>,
-    proj: vec4<f32>,
-    light: vec4<f32>,
-    params: vec4<f32>,
-    window: vec4<f32>,
-};
-
-@group(0) @binding(0) var<uniform> frame: Frame;
 @group(1) @binding(0) var atlas: texture_2d<f32>;
 @group(1) @binding(1) var atlas_sampler: sampler;
 
@@ -49,13 +41,8 @@ fn vs_quad(@builtin(vertex_index) i: u32, q: QuadIn) -> QuadOut {
         p = q.c3;
         uv = q.uv.zw;
     }
-    let x = dot(p, frame.right.xyz);
-    let y = dot(p, frame.up.xyz);
-    let depth = dot(p, frame.forward.xyz);
-    let xy = vec2<f32>(x * frame.proj.x, y * frame.proj.y) * frame.window.xy
-        + frame.window.zw * depth;
     var out: QuadOut;
-    out.position = vec4<f32>(xy, frame.proj.z, depth);
+    out.position = clip_of(p);
     out.uv = uv;
     return out;
 }

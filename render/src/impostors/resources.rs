@@ -18,7 +18,6 @@ pub(crate) struct ImpostorResources {
     pub(super) atlas_side: u32,
     pub(super) scratch: Target,
     pub(super) quad_pipeline: wgpu::RenderPipeline,
-    pub(super) uniform_group: wgpu::BindGroup,
     pub(super) texture_group: wgpu::BindGroup,
     pub(super) quad_buffer: Option<(wgpu::Buffer, u64)>,
     /// Block origin -> the serial of the cache it holds.
@@ -61,19 +60,6 @@ impl ImpostorResources {
             format,
             "farfield impostor scratch",
         );
-        let uniform_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-            label: Some("farfield quads uniform"),
-            entries: &[wgpu::BindGroupLayoutEntry {
-                binding: 0,
-                visibility: wgpu::ShaderStages::VERTEX_FRAGMENT,
-                ty: wgpu::BindingType::Buffer {
-                    ty: wgpu::BufferBindingType::Uniform,
-                    has_dynamic_offset: false,
-                    min_binding_size: None,
-                },
-                count: None,
-            }],
-        });
         let texture_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("farfield quads atlas"),
             entries: &[
@@ -94,14 +80,6 @@ impl ImpostorResources {
                     count: None,
                 },
             ],
-        });
-        let uniform_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("farfield quads uniform"),
-            layout: &uniform_layout,
-            entries: &[wgpu::BindGroupEntry {
-                binding: 0,
-                resource: pipes.uniform.as_entire_binding(),
-            }],
         });
         let sampler = device.create_sampler(&wgpu::SamplerDescriptor {
             label: Some("farfield atlas sampler"),
@@ -126,10 +104,20 @@ impl ImpostorResources {
         });
         let layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
             label: Some("farfield quads"),
-            bind_group_layouts: &[Some(&uniform_layout), Some(&texture_layout)],
+            bind_group_layouts: &[Some(&pipes.bind_layout), Some(&texture_layout)],
             immediate_size: 0,
         });
-        let shader = device.create_shader_module(wgpu::include_wgsl!("quads.wgsl"));
+        let shader = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("farfield quads"),
+            source: wgpu::ShaderSource::Wgsl(
+                concat!(
+                    include_str!("../geometry.wgsl"),
+                    "\n",
+                    include_str!("quads.wgsl")
+                )
+                .into(),
+            ),
+        });
         let attributes = wgpu::vertex_attr_array![
             0 => Float32x3, 1 => Float32x3, 2 => Float32x3, 3 => Float32x3, 4 => Float32x4
         ];
@@ -178,7 +166,6 @@ impl ImpostorResources {
             atlas_side,
             scratch,
             quad_pipeline,
-            uniform_group,
             texture_group,
             quad_buffer: None,
             held: HashMap::new(),

@@ -19,7 +19,9 @@ impl Planner {
         missing: &mut Vec<u32>,
     ) {
         let i = n as usize;
-        let node = w.s.nodes[i];
+        let Some(node) = w.s.nodes.get(i).copied() else {
+            return;
+        };
         if !top && self.status[i] == Status::DrawCache {
             if let Some(c) = &self.caches[i] {
                 missing.extend(&c.missing);
@@ -177,7 +179,9 @@ impl Planner {
             }
             let mut stack = vec![i as u32];
             while let Some(n) = stack.pop() {
-                let node = w.s.nodes[n as usize];
+                let Some(node) = w.s.nodes.get(n as usize).copied() else {
+                    continue;
+                };
                 match node.split {
                     Split::Leaf { leaf } => {
                         let page = w.s.leaf_page(leaf);

@@ -44,7 +44,9 @@ impl Planner {
     /// `UpdateNode(node)`: cache the node, or draw its contents.
     fn update_node(&mut self, w: &mut Walk, n: u32, cut: &mut ImpostorCut) {
         let i = n as usize;
-        let node = w.s.nodes[i];
+        let Some(node) = w.s.nodes.get(i).copied() else {
+            return;
+        };
         let costs = &w.options.costs;
         let (contents, children_zone, leaf) = match node.split {
             Split::Leaf { .. } => (costs.geometry_ms(node.triangles), Zone::EVERYWHERE, true),
@@ -118,7 +120,7 @@ impl Planner {
     /// Whether node `n` may be cached from here, and its rectangle, quad,
     /// zone and life span if so.
     fn candidate(&self, w: &Walk, n: u32, children_zone: Zone) -> Option<Candidate> {
-        let node = w.s.nodes[n as usize];
+        let node = w.s.nodes.get(n as usize)?;
         if w.epsilon <= 0.0 {
             return None;
         }
