@@ -191,6 +191,8 @@ struct ViewKey {
     atlas_side: u32,
     nodes: usize,
     root_center: DVec3,
+    /// Page 0's checksum: another file is another BSP.
+    skeleton: u32,
 }
 
 /// The planner's state between frames.
@@ -309,6 +311,7 @@ impl Planner {
             atlas_side: options.atlas_side,
             nodes: s.nodes.len(),
             root_center: h.header.root_center,
+            skeleton: h.header.pages.first().map_or(0, |p| p.checksum),
         };
         if self.key != Some(key) {
             self.key = Some(key);
