@@ -183,6 +183,13 @@ pub struct ViewArgs {
     /// triangle budget follows the measured draw rate; 0: off).
     #[arg(long, default_value_t = 0.0)]
     pub plp_budget_ms: f64,
+    /// BSP files (image caching): the error a cached image may show, in
+    /// pixels; 0 never caches.
+    #[arg(long, default_value_t = 1.0, value_parser = parse_epsilon_px)]
+    pub epsilon_px: f64,
+    /// BSP files: outline each cached image.
+    #[arg(long)]
+    pub outlines: bool,
     /// Resident pages kept, MiB.
     #[arg(long, default_value_t = 512)]
     pub cache_mib: u64,
@@ -343,6 +350,11 @@ pub struct RenderArgs {
     /// With --path, also write every frame as a PNG.
     #[arg(long)]
     pub write_frames: bool,
+    /// With --path: image caching counts each cache's life span along the
+    /// path, known in advance (the paper's offline estimate), instead of
+    /// extrapolating the viewer's motion.
+    #[arg(long, requires = "path")]
+    pub known_path: bool,
     /// Stop when refined (default), after N frames, or after T milliseconds.
     #[arg(long, value_parser = ["refined"], conflicts_with_all = ["frames", "ms"])]
     pub until: Option<String>,
@@ -445,6 +457,8 @@ fn view_job(args: ViewArgs) -> anyhow::Result<commands::view::ViewJob> {
         } else {
             0.0
         },
+        epsilon_px: args.epsilon_px,
+        outline_caches: args.outlines,
         ..Default::default()
     };
     Ok(commands::view::ViewJob {
@@ -458,6 +472,16 @@ fn view_job(args: ViewArgs) -> anyhow::Result<commands::view::ViewJob> {
         screenshot_when_refined: args.screenshot_when_refined,
         flight_seconds: args.flight,
     })
+}
+
+/// An image-cache error bound in pixels: finite and not negative.
+fn parse_epsilon_px(s: &str) -> Result<f64, String> {
+    match s.parse::<f64>() {
+        Ok(eps) if eps.is_finite() && eps >= 0.0 => Ok(eps),
+        _ => Err(format!(
+            "{s} is not an error in pixels (a number, 0 or more)"
+        )),
+    }
 }
 
 /// A frame time in milliseconds: finite and above 0 (a 0 ms budget would

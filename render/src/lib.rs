@@ -73,6 +73,9 @@ pub struct SplatStyle {
     pub two_sided: bool,
     /// Cube hierarchies: how face coverage is used.
     pub coverage: Coverage,
+    /// Image caching: outline each cached image's quad (a viewer shows
+    /// which parts of the picture are caches; never in a measured image).
+    pub outline_caches: bool,
 }
 
 impl Default for SplatStyle {
@@ -84,6 +87,7 @@ impl Default for SplatStyle {
             light_dir: glam::Vec3::new(0.4, 0.3, 0.866),
             two_sided: false,
             coverage: Coverage::default(),
+            outline_caches: false,
         }
     }
 }

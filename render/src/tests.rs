@@ -34,6 +34,7 @@ fn style(kernel: Kernel) -> SplatStyle {
         light_dir: Vec3::NEG_X,
         two_sided: false,
         coverage: Default::default(),
+        outline_caches: false,
     }
 }
 

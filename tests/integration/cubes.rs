@@ -697,6 +697,7 @@ fn eps_adapts_to_the_frame_budget_in_flight() {
         settle: false,
         timeout: Duration::from_secs(60),
         budget: Default::default(),
+        known_path: false,
     };
     let mut viewer = Viewer::open_file(&path).unwrap();
     let (stats, _) = fly(&mut viewer, &mut renderer, &job, std::time::Instant::now()).unwrap();

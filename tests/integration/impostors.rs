@@ -19,7 +19,7 @@ const W: u32 = 160;
 const H: u32 = 120;
 
 /// A small island with trees, many leaves.
-fn island_file() -> PagedFile {
+pub(crate) fn island_file() -> PagedFile {
     let mut params = Params::default();
     params.set("trees", 24);
     params.set("size", 49);
@@ -33,7 +33,7 @@ fn island_file() -> PagedFile {
 }
 
 /// Frame `i` of a slow orbit high over the island.
-fn orbit(h: &Hierarchy, i: u32) -> Camera {
+pub(crate) fn orbit(h: &Hierarchy, i: u32) -> Camera {
     let (c, r) = (h.header.root_center, h.header.root_radius);
     Camera::orbit(c, r, 20.0 + 0.2 * f64::from(i), 35.0, 1.6, W, H)
 }
@@ -126,6 +126,63 @@ fn a_walk_makes_caches_once_and_draws_them_close_to_the_geometry() {
     // Caches live for many frames: far more quads drawn than made.
     assert!(drawn > 3 * made, "made {made}, drawn {drawn}");
     assert!(worst_psnr > 25.0, "worst frame {worst_psnr:.1} dB");
+}
+
+/// The viewer's cache outlines: magenta edges on the quads drawn from
+/// caches, nothing else changed, and none when no quad is a cache.
+#[test]
+fn outlines_mark_the_cached_quads_and_change_nothing_else() {
+    let file = island_file();
+    let h = resident(&file);
+    let Some(mut renderer) = farfield_render::headless_or_skip(W, H).expect("adapter") else {
+        return;
+    };
+    let outlined = farfield_render::SplatStyle {
+        outline_caches: true,
+        ..Default::default()
+    };
+    let is_outline = |p: &[u8]| p[0] == 255 && p[1] == 0 && p[2] == 255;
+    let mut planner = Planner::default();
+    let camera = orbit(&h, 0);
+    // ε = 0: no cache, so no outline.
+    let cut = plan(&mut planner, &h, &camera, 0.0);
+    let plain = impostor_image(&mut renderer, &h, &camera, &cut);
+    let lines = renderer
+        .draw(&h, &camera, DrawList::Impostors(&cut), &outlined)
+        .expect("draws")
+        .rgba;
+    assert_eq!(plain, lines, "outlines with no cache drawn");
+    // Caches made over a few frames (each frame drawn: the renderer makes
+    // a frame's caches when it draws it), then drawn: outlined.
+    let mut cut = plan(&mut planner, &h, &camera, 4.0);
+    for _ in 0..6 {
+        impostor_image(&mut renderer, &h, &camera, &cut);
+        cut = plan(&mut planner, &h, &camera, 4.0);
+    }
+    assert!(cut.stats.caches_drawn > 0, "{:?}", cut.stats);
+    let plain = impostor_image(&mut renderer, &h, &camera, &cut);
+    let lines = renderer
+        .draw(&h, &camera, DrawList::Impostors(&cut), &outlined)
+        .expect("draws")
+        .rgba;
+    let (mut marked, mut changed_elsewhere) = (0, 0);
+    for (a, b) in plain.chunks_exact(4).zip(lines.chunks_exact(4)) {
+        if is_outline(b) && !is_outline(a) {
+            marked += 1;
+        } else if a != b {
+            changed_elsewhere += 1;
+        }
+    }
+    assert_eq!(plain.chunks_exact(4).filter(|p| is_outline(p)).count(), 0);
+    assert!(
+        marked > 0,
+        "no outline drawn around {} caches",
+        cut.stats.caches_drawn
+    );
+    assert_eq!(changed_elsewhere, 0, "outlines changed other pixels");
+    // Edges, not fills: fewer outline pixels than the frame's tenth.
+    assert!(marked < (W * H / 10) as usize, "{marked} outline pixels");
+    assert_eq!(renderer.stale_quads(), 0);
 }
 
 #[test]

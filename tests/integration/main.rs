@@ -10,6 +10,8 @@ mod cubes;
 mod degenerate;
 mod extremes;
 mod holes;
+mod impostor_prefetch;
+mod impostor_tools;
 mod impostors;
 mod kinds;
 mod layout;

@@ -107,6 +107,11 @@ pub trait Traversal: std::fmt::Debug {
     /// Pages the cut read, ascending (with `record_pages`).
     fn touched_pages(&self) -> &[u32];
     fn counts(&self) -> Counts;
+    /// The eyes of the frames to come, one a frame, when the path is known
+    /// in advance (a recorded flythrough). Kinds that plan ahead use it
+    /// (image caching counts its caches' life spans along it); the others
+    /// ignore it.
+    fn set_known_path(&mut self, _eyes: &[glam::DVec3]) {}
 }
 
 /// A kind as the rest of the client knows it: its names and a constructor.

@@ -58,6 +58,10 @@ pub struct FlyJob {
     pub timeout: Duration,
     /// Budgeted kinds (PLP): triangles or milliseconds a frame.
     pub budget: BudgetSpec,
+    /// Tell the traversal the path's eyes in advance (image caching then
+    /// counts its caches' life spans along the path instead of
+    /// extrapolating the motion: the paper's offline estimate).
+    pub known_path: bool,
 }
 
 /// One row of the per-frame CSV.
@@ -137,6 +141,19 @@ pub fn fly(
     let mut cut = LastCut::default();
     job.budget.apply(&mut cut);
     cut.final_threshold = Some(final_threshold);
+    if job.known_path
+        && let Some(header) = viewer.header().cloned()
+    {
+        let eyes = (0..frames)
+            .map(|f| {
+                let path_s = f as f64 / job.fps.max(1e-3);
+                job.path
+                    .camera_at(path_s, &header, job.width, job.height)
+                    .eye
+            })
+            .collect();
+        cut.set_known_path(eyes);
+    }
     let mut rgba = Vec::new();
     for frame in 0..frames {
         viewer.pump(Duration::ZERO)?;

@@ -67,12 +67,25 @@ pub struct LastCut {
     /// Image caching's cost model, measured by the renderer before the
     /// first frame of a BSP file (`None` until then).
     pub costs: Option<farfield_traverse::impostors::CostModel>,
+    /// The eyes of the frames to come, when the path is known (see
+    /// [`LastCut::set_known_path`]).
+    known_path: Vec<glam::DVec3>,
 }
 
 impl LastCut {
     /// Draws with `kind` wherever the file's hierarchy is its.
     pub fn prefer(&mut self, kind: &'static Registered) {
         self.prefer = Some(kind);
+    }
+
+    /// Tells the traversal (now and whenever it is made again) the eyes of
+    /// the frames to come, one a frame: a flythrough's path known in
+    /// advance. Image caching counts life spans along it.
+    pub fn set_known_path(&mut self, eyes: Vec<glam::DVec3>) {
+        if let Some(t) = self.traversal.as_mut() {
+            t.set_known_path(&eyes);
+        }
+        self.known_path = eyes;
     }
 
     /// The kind a file of hierarchy `kind` is drawn with.
@@ -106,10 +119,16 @@ impl LastCut {
             {
                 t
             }
-            _ => match wanted {
-                Some(w) => (w.make)(),
-                None => farfield_traverse::for_hierarchy(kind),
-            },
+            _ => {
+                let mut made = match wanted {
+                    Some(w) => (w.make)(),
+                    None => farfield_traverse::for_hierarchy(kind),
+                };
+                if !self.known_path.is_empty() {
+                    made.set_known_path(&self.known_path);
+                }
+                made
+            }
         };
         self.traversal.insert(traversal).as_mut()
     }

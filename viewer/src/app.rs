@@ -284,9 +284,11 @@ impl ViewerApp {
         let style = SplatStyle {
             kernel: s.kernel,
             coverage: s.coverage,
+            outline_caches: s.outline_caches,
             ..SplatStyle::default()
         };
         s.apply_plp_budget(&mut self.cut);
+        s.apply_epsilon(&mut self.cut);
         let started = Instant::now();
         match draw_frame(
             &mut self.viewer,
@@ -310,7 +312,7 @@ impl ViewerApp {
                     missing_pages: missing,
                     root: self.viewer.hierarchy().is_some_and(|h| h.is_resident(0)),
                 };
-                self.status.threshold = self.refine.threshold();
+                self.status.threshold = times.threshold_px;
                 if let Some(flight) = self.flight.as_mut() {
                     let resident = self
                         .viewer

@@ -26,6 +26,12 @@ pub struct Settings {
     /// paper's time-critical mode: the triangle budget follows the draw
     /// rate measured on the frames before.
     pub plp_budget_ms: f64,
+    /// Image caching (BSP files): the error bound ε of a cached image,
+    /// pixels. It is held on every frame (not refined): a cache made at
+    /// one ε is valid only within that ε's safety zone.
+    pub epsilon_px: f64,
+    /// Image caching: outline each cached image on screen.
+    pub outline_caches: bool,
 }
 
 impl Default for Settings {
@@ -40,6 +46,8 @@ impl Default for Settings {
             cache_mib: 512,
             plp_budget_percent: 100.0,
             plp_budget_ms: 0.0,
+            epsilon_px: 1.0,
+            outline_caches: false,
         }
     }
 }
@@ -68,6 +76,18 @@ impl Settings {
         } else {
             None
         };
+    }
+
+    /// Sets the frame loop's image-caching ε: the kinds whose threshold is
+    /// an error bound they hold (image caching) draw at it on every frame;
+    /// the others keep refining. A bad value falls back to the default.
+    pub fn apply_epsilon(&self, cut: &mut farfield_view::frame_loop::LastCut) {
+        let eps = self.epsilon_px;
+        cut.final_threshold = Some(if eps.is_finite() && eps >= 0.0 {
+            eps
+        } else {
+            Settings::default().epsilon_px
+        });
     }
 
     pub fn cache_bytes(&self) -> usize {
@@ -155,6 +175,13 @@ pub fn show(ui: &mut egui::Ui, status: &Status, settings: &mut Settings) -> Acti
                 egui::Slider::new(&mut settings.plp_budget_ms, 0.0..=200.0)
                     .text("PLP frame time (ms, 0: off)"),
             );
+            ui.horizontal(|ui| {
+                ui.add(
+                    egui::Slider::new(&mut settings.epsilon_px, 0.0..=16.0)
+                        .text("image caches ε (px)"),
+                );
+                ui.checkbox(&mut settings.outline_caches, "outlines");
+            });
             ui.add(
                 egui::Slider::new(&mut settings.target_frame_ms, 8.0..=200.0)
                     .text("target frame (ms)"),
@@ -180,6 +207,29 @@ mod tests {
     use super::*;
     use farfield_traverse::Budget;
     use farfield_view::frame_loop::LastCut;
+
+    #[test]
+    fn the_epsilon_control_sets_the_bound_image_caching_holds() {
+        let mut cut = LastCut::default();
+        let mut s = Settings {
+            epsilon_px: 4.0,
+            ..Settings::default()
+        };
+        s.apply_epsilon(&mut cut);
+        assert_eq!(cut.final_threshold, Some(4.0));
+        s.epsilon_px = 0.0;
+        s.apply_epsilon(&mut cut);
+        assert_eq!(cut.final_threshold, Some(0.0), "0: never cache");
+        for bad in [f64::NAN, -1.0, f64::INFINITY] {
+            s.epsilon_px = bad;
+            s.apply_epsilon(&mut cut);
+            assert_eq!(
+                cut.final_threshold,
+                Some(Settings::default().epsilon_px),
+                "{bad}"
+            );
+        }
+    }
 
     #[test]
     fn the_plp_controls_set_the_frame_loops_budget() {

@@ -1,5 +1,5 @@
 //! The viewer's options from the page's query string:
-//! `?panel=0&backend=webgl&kernel=round&threshold=2&budget=N&plp_budget=P&plp_budget_ms=MS&cache_mib=M&access_token=T`,
+//! `?panel=0&backend=webgl&kernel=round&threshold=2&budget=N&plp_budget=P&plp_budget_ms=MS&epsilon_px=E&outlines=1&cache_mib=M&access_token=T`,
 //! and `flight=SECONDS` (the benchmark's scripted flight).
 
 use farfield_render::Kernel;
@@ -51,6 +51,12 @@ pub fn parse(search: &str) -> Result<Query, String> {
     }
     if let Some(ms) = number("plp_budget_ms")? {
         options.settings.plp_budget_ms = ms;
+    }
+    if let Some(eps) = number("epsilon_px")? {
+        options.settings.epsilon_px = eps;
+    }
+    if let Some(v) = params.get("outlines") {
+        options.settings.outline_caches = !matches!(v.as_str(), "0" | "false" | "no");
     }
     options.flight_seconds = number("flight")?;
     if let Some(m) = number("cache_mib")? {

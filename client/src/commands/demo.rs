@@ -98,6 +98,7 @@ pub fn run(job: &DemoJob) -> anyhow::Result<DemoSummary> {
         settle: true,
         timeout: Duration::from_secs(300),
         budget: Default::default(),
+        known_path: false,
     };
     let (stats, settle) = fly(&mut viewer, &mut renderer, &fly_job, started)?;
     drop(viewer);

@@ -72,6 +72,7 @@ pub fn run(args: RenderArgs) -> anyhow::Result<()> {
             &path,
             args.fps,
             args.write_frames,
+            args.known_path,
             &mut renderer,
             args.json,
         );
@@ -129,6 +130,7 @@ fn fly_path(
     path: &std::path::Path,
     fps: f64,
     write_frames: bool,
+    known_path: bool,
     renderer: &mut Renderer,
     json: bool,
 ) -> anyhow::Result<()> {
@@ -153,6 +155,7 @@ fn fly_path(
         settle: true,
         timeout: job.timeout,
         budget: job.budget,
+        known_path,
     };
     let (stats, settle) = fly(&mut viewer, renderer, &fly_job, started)?;
     write_csv(&out.join("frames.csv"), &stats)?;

@@ -16,7 +16,7 @@ use glam::DVec3;
 use web_time::Instant;
 
 use super::ImpostorResources;
-use super::pack::{GpuQuad, Sequence, Step, encode, upload_sequence};
+use super::pack::{GpuQuad, QuadLook, Sequence, Step, encode, upload_sequence};
 use crate::geometry::GeometryUniform;
 use crate::{GpuVertex, Renderer};
 
@@ -54,7 +54,7 @@ impl Renderer {
                 let mut encoder = gpu.device.create_command_encoder(&Default::default());
                 {
                     let mut pass = res.scratch_pass(&mut encoder);
-                    encode(&mut pass, pipes, Some(&res), seq);
+                    encode(&mut pass, pipes, Some(&res), seq, QuadLook::Plain);
                 }
                 if copy > 0 {
                     res.copy_to_atlas(&mut encoder, (0, 0), copy, copy);

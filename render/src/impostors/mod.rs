@@ -31,7 +31,7 @@ use crate::adapter::Gpu;
 use crate::error_scope::ValidationScope;
 use crate::geometry::{GeometryPipelines, GeometryUniform, WHOLE_VIEW, near_plane_of};
 use crate::{RenderOutput, Renderer, SplatStyle};
-use pack::{FrameInput, Sequence, encode, pack, upload_sequence};
+use pack::{FrameInput, QuadLook, Sequence, encode, pack, upload_sequence};
 pub(crate) use resources::ImpostorResources;
 
 impl Renderer {
@@ -87,7 +87,12 @@ impl Renderer {
         {
             let mut pass =
                 frame.begin_pass(&mut encoder, "farfield impostor frame", style.background);
-            encode(&mut pass, pipes, slot.as_ref(), &seq);
+            let look = if style.outline_caches {
+                QuadLook::Outlined
+            } else {
+                QuadLook::Plain
+            };
+            encode(&mut pass, pipes, slot.as_ref(), &seq, look);
         }
         let rgba = output.finish(gpu, frame, encoder)?;
         let draw_ms = started.elapsed().as_secs_f64() * 1e3;
@@ -167,7 +172,7 @@ fn make_cache(
         let mut pass = res.scratch_pass(&mut encoder);
         pass.set_viewport(1.0, 1.0, rw as f32, rh as f32, 0.0, 1.0);
         pass.set_scissor_rect(1, 1, rw, rh);
-        encode(&mut pass, pipes, Some(res), &seq);
+        encode(&mut pass, pipes, Some(res), &seq, QuadLook::Plain);
     }
     res.copy_to_atlas(&mut encoder, (job.block.x, job.block.y), rw + 2, rh + 2);
     // Submitted now: the next cache rewrites the uniform and buffers.

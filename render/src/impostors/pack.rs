@@ -192,11 +192,20 @@ pub(super) fn upload_sequence(
 }
 
 /// Records a sequence's draws in order.
+/// How cached quads are drawn: as they are, or outlined (a viewer's
+/// final frame only; a cache never holds an outline).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(super) enum QuadLook {
+    Plain,
+    Outlined,
+}
+
 pub(super) fn encode(
     pass: &mut wgpu::RenderPass<'_>,
     pipes: &GeometryPipelines,
     res: Option<&ImpostorResources>,
     seq: &Sequence,
+    quads: QuadLook,
 ) {
     for step in &seq.steps {
         match step {
@@ -229,7 +238,10 @@ pub(super) fn encode(
                 let Some((buffer, _)) = &res.quad_buffer else {
                     continue;
                 };
-                pass.set_pipeline(&res.quad_pipeline);
+                pass.set_pipeline(match quads {
+                    QuadLook::Plain => &res.quad_pipeline,
+                    QuadLook::Outlined => &res.outlined_pipeline,
+                });
                 pass.set_bind_group(0, &pipes.bind_group, &[]);
                 pass.set_bind_group(1, &res.texture_group, &[]);
                 pass.set_vertex_buffer(0, buffer.slice(..));

@@ -25,29 +25,56 @@ struct QuadIn {
 struct QuadOut {
     @builtin(position) position: vec4<f32>,
     @location(0) uv: vec2<f32>,
+    // Where on the quad, 0 to 1 across and down (for the outline).
+    @location(1) across: vec2<f32>,
 };
 
 @vertex
 fn vs_quad(@builtin(vertex_index) i: u32, q: QuadIn) -> QuadOut {
     var p = q.c0;
     var uv = q.uv.xy;
+    var across = vec2<f32>(0.0, 0.0);
     if i == 1u {
         p = q.c1;
         uv = vec2<f32>(q.uv.z, q.uv.y);
+        across = vec2<f32>(1.0, 0.0);
     } else if i == 2u {
         p = q.c2;
         uv = vec2<f32>(q.uv.x, q.uv.w);
+        across = vec2<f32>(0.0, 1.0);
     } else if i == 3u {
         p = q.c3;
         uv = q.uv.zw;
+        across = vec2<f32>(1.0, 1.0);
     }
     var out: QuadOut;
     out.position = clip_of(p);
     out.uv = uv;
+    out.across = across;
     return out;
 }
 
 @fragment
 fn fs_quad(i: QuadOut) -> @location(0) vec4<f32> {
     return textureSample(atlas, atlas_sampler, i.uv);
+}
+
+// The outline a viewer shows around each cache (`SplatStyle::outline_caches`):
+// opaque magenta within OUTLINE_PX screen pixels of the quad's edge, the
+// image inside. Only the final frame uses it, never a cache being made.
+const OUTLINE_PX: f32 = 1.5;
+const OUTLINE: vec4<f32> = vec4<f32>(1.0, 0.0, 1.0, 1.0);
+
+@fragment
+fn fs_quad_outlined(i: QuadOut) -> @location(0) vec4<f32> {
+    let image = textureSample(atlas, atlas_sampler, i.uv);
+    // Distance to the nearest edge in pixels: the quad coordinate's
+    // distance over its change per pixel (never 0 on a drawn fragment,
+    // but guarded).
+    let per_px = max(fwidth(i.across), vec2<f32>(1e-6));
+    let to_edge = min(i.across, vec2<f32>(1.0) - i.across) / per_px;
+    if min(to_edge.x, to_edge.y) < OUTLINE_PX {
+        return OUTLINE;
+    }
+    return image;
 }

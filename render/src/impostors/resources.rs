@@ -11,13 +11,14 @@ use crate::geometry::GeometryPipelines;
 use crate::target::{Target, color_target};
 
 /// The atlas, the scratch frame caches are drawn in, and the quad
-/// pipeline.
+/// pipelines (plain, and outlined for a viewer that shows its caches).
 #[derive(Debug)]
 pub(crate) struct ImpostorResources {
     pub(super) atlas: wgpu::Texture,
     pub(super) atlas_side: u32,
     pub(super) scratch: Target,
     pub(super) quad_pipeline: wgpu::RenderPipeline,
+    pub(super) outlined_pipeline: wgpu::RenderPipeline,
     pub(super) texture_group: wgpu::BindGroup,
     pub(super) quad_buffer: Option<(wgpu::Buffer, u64)>,
     /// Block origin -> the serial of the cache it holds.
@@ -121,43 +122,47 @@ impl ImpostorResources {
         let attributes = wgpu::vertex_attr_array![
             0 => Float32x3, 1 => Float32x3, 2 => Float32x3, 3 => Float32x3, 4 => Float32x4
         ];
-        let quad_pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-            label: Some("farfield quads"),
-            layout: Some(&layout),
-            vertex: wgpu::VertexState {
-                module: &shader,
-                entry_point: Some("vs_quad"),
-                compilation_options: Default::default(),
-                buffers: &[Some(wgpu::VertexBufferLayout {
-                    array_stride: std::mem::size_of::<GpuQuad>() as u64,
-                    step_mode: wgpu::VertexStepMode::Instance,
-                    attributes: &attributes,
-                })],
-            },
-            primitive: wgpu::PrimitiveState {
-                topology: wgpu::PrimitiveTopology::TriangleStrip,
-                ..Default::default()
-            },
-            depth_stencil: Some(wgpu::DepthStencilState {
-                format: crate::target::DEPTH_FORMAT,
-                depth_write_enabled: Some(false),
-                depth_compare: Some(wgpu::CompareFunction::Always),
-                stencil: Default::default(),
-                bias: Default::default(),
-            }),
-            multisample: Default::default(),
-            fragment: Some(wgpu::FragmentState {
-                module: &shader,
-                entry_point: Some("fs_quad"),
-                compilation_options: Default::default(),
-                targets: &[color_target(
-                    format,
-                    Some(wgpu::BlendState::PREMULTIPLIED_ALPHA_BLENDING),
-                )],
-            }),
-            multiview_mask: None,
-            cache: None,
-        });
+        let make_quad_pipeline = |fragment: &str| {
+            device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+                label: Some("farfield quads"),
+                layout: Some(&layout),
+                vertex: wgpu::VertexState {
+                    module: &shader,
+                    entry_point: Some("vs_quad"),
+                    compilation_options: Default::default(),
+                    buffers: &[Some(wgpu::VertexBufferLayout {
+                        array_stride: std::mem::size_of::<GpuQuad>() as u64,
+                        step_mode: wgpu::VertexStepMode::Instance,
+                        attributes: &attributes,
+                    })],
+                },
+                primitive: wgpu::PrimitiveState {
+                    topology: wgpu::PrimitiveTopology::TriangleStrip,
+                    ..Default::default()
+                },
+                depth_stencil: Some(wgpu::DepthStencilState {
+                    format: crate::target::DEPTH_FORMAT,
+                    depth_write_enabled: Some(false),
+                    depth_compare: Some(wgpu::CompareFunction::Always),
+                    stencil: Default::default(),
+                    bias: Default::default(),
+                }),
+                multisample: Default::default(),
+                fragment: Some(wgpu::FragmentState {
+                    module: &shader,
+                    entry_point: Some(fragment),
+                    compilation_options: Default::default(),
+                    targets: &[color_target(
+                        format,
+                        Some(wgpu::BlendState::PREMULTIPLIED_ALPHA_BLENDING),
+                    )],
+                }),
+                multiview_mask: None,
+                cache: None,
+            })
+        };
+        let outlined_pipeline = make_quad_pipeline("fs_quad_outlined");
+        let quad_pipeline = make_quad_pipeline("fs_quad");
         if let Some(e) = scope.pop() {
             bail!("creating the image-cache atlas and quad pipeline: {e}");
         }
@@ -166,6 +171,7 @@ impl ImpostorResources {
             atlas_side,
             scratch,
             quad_pipeline,
+            outlined_pipeline,
             texture_group,
             quad_buffer: None,
             held: HashMap::new(),

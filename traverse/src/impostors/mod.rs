@@ -76,6 +76,10 @@ impl crate::Traversal for ImpostorTraversal {
         &self.cut.touched_pages
     }
 
+    fn set_known_path(&mut self, eyes: &[glam::DVec3]) {
+        self.planner.set_known_path(eyes);
+    }
+
     fn counts(&self) -> Counts {
         Counts {
             visited: self.cut.visited,

@@ -1,6 +1,5 @@
-//! What is drawn: a cache's contents (for the renderer to make it), the
-//! frame's items back to front (`Render`), and the pages pre-caching
-//! asks for.
+//! What is drawn: a cache's contents (for the renderer to make it) and
+//! the frame's items back to front (`Render`).
 
 use farfield_protocol::bsp_codec::Split;
 
@@ -154,44 +153,6 @@ impl Planner {
                 } else {
                     self.render(w, front, cut);
                     self.render(w, back, cut);
-                }
-            }
-        }
-    }
-
-    /// Pre-caching: the pages of caches drawn this frame whose zone the
-    /// viewer leaves soon, wanted at a low priority, so the geometry is
-    /// resident when they must be made again.
-    pub(super) fn precache(&self, w: &mut Walk) {
-        for (i, c) in self.caches.iter().enumerate() {
-            let Some(c) = c else { continue };
-            if self.status[i] != Status::DrawCache {
-                continue;
-            }
-            let life = c.zone.frames_until_exit(
-                w.camera.eye,
-                self.velocity,
-                self.acceleration,
-                w.options.life_cap,
-            );
-            if life > w.options.precache_frames {
-                continue;
-            }
-            let mut stack = vec![i as u32];
-            while let Some(n) = stack.pop() {
-                let Some(node) = w.s.nodes.get(n as usize).copied() else {
-                    continue;
-                };
-                match node.split {
-                    Split::Leaf { leaf } => {
-                        let page = w.s.leaf_page(leaf);
-                        if !w.h.is_resident(page as usize) {
-                            let (size, off) = node_priority(&w.view, node.box_min, node.box_max);
-                            // Below anything the frame itself needs.
-                            w.pages.want(page, size * 1e-3, off);
-                        }
-                    }
-                    Split::Plane { back, front, .. } => stack.extend([back, front]),
                 }
             }
         }

@@ -23,6 +23,8 @@
 //!   frame, which would make them all, never stalls.
 
 mod draw;
+mod life;
+mod prefetch;
 mod screen;
 mod update;
 
@@ -55,8 +57,15 @@ pub struct ImpostorOptions {
     /// would make it infinite).
     pub life_cap: u32,
     /// Caches whose zone the eye leaves within this many frames have their
-    /// pages prefetched (the paper's pre-caching).
+    /// pages prefetched (the paper's pre-caching), and leaves the view
+    /// will hold this many frames ahead are too.
     pub precache_frames: u32,
+    /// Leaves about to enter the view: the frustum they are looked for in
+    /// is this much wider (the tangent of its half-angles), for turns.
+    pub entering_margin: f64,
+    /// Leaves about to enter the view: at most this many pages a frame
+    /// (0: none).
+    pub entering_pages: usize,
 }
 
 impl Default for ImpostorOptions {
@@ -68,6 +77,8 @@ impl Default for ImpostorOptions {
             atlas_side: 4096,
             life_cap: 1000,
             precache_frames: 8,
+            entering_margin: 1.25,
+            entering_pages: 16,
         }
     }
 }
@@ -209,6 +220,10 @@ pub struct Planner {
     last_eye: Option<DVec3>,
     velocity: DVec3,
     acceleration: DVec3,
+    /// The eyes of a known path, one a frame (`set_known_path`), and
+    /// where this frame's eye is on it.
+    path: Vec<DVec3>,
+    path_at: Option<usize>,
 }
 
 /// One frame's walk.
@@ -224,7 +239,6 @@ struct Walk<'a> {
 }
 
 impl Planner {
-    /// Plans the frame for `camera` into `cut`.
     /// Plans the frame for `camera` into `cut`.
     pub fn plan(
         &mut self,
@@ -252,6 +266,7 @@ impl Planner {
         };
         self.frame += 1;
         self.track_motion(camera.eye);
+        self.locate_on_path(camera.eye);
         self.reset_if_changed(h, s, camera, options);
         self.drop_refined(h);
         let n = s.nodes.len();
@@ -275,6 +290,7 @@ impl Planner {
         self.update_caches(&mut walk, 0, cut);
         self.render(&mut walk, 0, cut);
         self.precache(&mut walk);
+        self.entering(&mut walk);
         let Walk { pages, .. } = walk;
         pages.finish(&mut cut.touched_pages, &mut cut.wanted);
         let atlas = self.atlas.as_ref();

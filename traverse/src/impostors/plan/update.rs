@@ -134,8 +134,7 @@ impl Planner {
         let centre = (node.box_min + node.box_max) * 0.5;
         let quad = QuadPlane::new(eye, w.view.forward, centre)?;
         let zone = safety_zone(&quad, &corners, w.epsilon)?.intersect(&children_zone);
-        let life =
-            zone.frames_until_exit(eye, self.velocity, self.acceleration, w.options.life_cap);
+        let life = self.life_span(&zone, eye, w.options.life_cap);
         if life == 0 {
             return None;
         }
