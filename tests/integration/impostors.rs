@@ -333,3 +333,42 @@ fn cached_nodes_real_error_over_their_vertices_is_measured_against_epsilon() {
         "a corner shows {worst_corner_px} px"
     );
 }
+
+/// The costs are measured on this machine (every constant finite and
+/// above 0), and a quad's fill counts: where covering a pixel costs as
+/// much as drawing the geometry behind it, no cache pays.
+#[test]
+fn measured_costs_and_a_quads_fill_decide_what_is_cached() {
+    let file = island_file();
+    let h = resident(&file);
+    if let Some(mut renderer) = farfield_render::headless_or_skip(W, H).expect("adapter") {
+        let costs = renderer.measure_impostor_costs().expect("measures");
+        assert!(costs.measured);
+        for v in [
+            costs.ms_per_triangle,
+            costs.ms_per_cache,
+            costs.ms_per_cache_pixel,
+            costs.ms_per_quad,
+            costs.ms_per_quad_pixel,
+        ] {
+            assert!(v.is_finite() && v > 0.0, "{costs:?}");
+        }
+    }
+    let camera = orbit(&h, 0);
+    let made = |ms_per_quad_pixel: f64| {
+        let options = ImpostorOptions {
+            epsilon_px: 2.0,
+            atlas_side: 1024,
+            costs: farfield_traverse::impostors::CostModel {
+                ms_per_quad_pixel,
+                ..Default::default()
+            },
+            ..ImpostorOptions::default()
+        };
+        let mut cut = ImpostorCut::default();
+        Planner::default().plan(&h, &camera, &options, true, &mut cut);
+        cut.stats.caches_made
+    };
+    assert!(made(0.0) > 0);
+    assert_eq!(made(1.0), 0, "a quad dearer than any geometry was cached");
+}

@@ -1,9 +1,10 @@
 //! The cost model's constants, measured on this machine at start-up (the
 //! paper's "established experimentally on each platform"): drawing
-//! triangles, making a cache (a cleared pass and a copy of its pixels into
-//! the atlas) and drawing cached quads, each timed to the GPU's completion
-//! at two sizes, the difference giving the cost per unit and the smaller
-//! the fixed part. Medians of three runs; a slope the noise makes negative
+//! triangles, making a cache (a cleared pass the size of the view and a
+//! copy of its pixels into the atlas) and drawing cached quads (by count,
+//! and by the pixels they cover), each timed to the GPU's completion at
+//! two sizes, the difference giving the cost per unit and the smaller the
+//! fixed part. Medians of three runs; a slope the noise makes negative
 //! is floored, never zero (`UpdateNode` divides nothing by it, but a free
 //! triangle would make every cache look too dear).
 //!
@@ -20,7 +21,8 @@ use super::pack::{GpuQuad, QuadLook, Sequence, Step, encode, upload_sequence};
 use crate::geometry::GeometryUniform;
 use crate::{GpuVertex, Renderer};
 
-/// The side of the calibration frame, pixels.
+/// The smallest side of the calibration frame, pixels (it is the view's
+/// size when that is larger: a cache's pass clears a frame that size).
 const SIDE: u32 = 254;
 /// The smallest cost per unit kept.
 const FLOOR: f64 = 1e-9;
@@ -32,15 +34,20 @@ impl Renderer {
             return Ok(CostModel::UNMEASURED);
         }
         let format = self.output_format();
+        let (width, height) = self.size();
+        let (width, height) = (width.max(SIDE), height.max(SIDE));
         let (gpu, pipes, _, _) = self.impostor_parts()?;
-        let mut res = ImpostorResources::new(&gpu.device, pipes, format, 512, (SIDE, SIDE))?;
+        let mut res = ImpostorResources::new(&gpu.device, pipes, format, 512, (width, height))?;
+        // At depth 10 with a 90 degree field, a world unit is this many
+        // pixels, across and down.
+        let px_per_unit = f64::from(height + 2) / 20.0;
         let camera = Camera {
             eye: DVec3::ZERO,
             target: DVec3::NEG_Z,
             up: DVec3::Y,
             fov_y_deg: 90.0,
-            width: SIDE,
-            height: SIDE,
+            width: width + 2,
+            height: height + 2,
         };
         let view = camera.view(1.0);
         let uniform = GeometryUniform::new(&view, 1.0, crate::geometry::WHOLE_VIEW);
@@ -83,14 +90,16 @@ impl Renderer {
             seq.steps.push(Step::Triangles(0..n * 3));
             seq
         };
-        let quads = |n: u32| {
+        // `n` square quads of `side` world units, scattered in the view.
+        let quads = |n: u32, side: f32| {
             let mut seq = Sequence::default();
+            let span = (16.0 - side).max(0.0) / 120.0;
             for i in 0..n {
-                let x = (i * 37 % 120) as f32 * 0.13 - 8.0;
-                let y = (i * 53 % 120) as f32 * 0.13 - 8.0;
+                let x = (i * 37 % 120) as f32 * span - 8.0;
+                let y = (i * 53 % 120) as f32 * span - 8.0;
                 let c = |dx: f32, dy: f32| [x + dx, y + dy, -10.0];
                 seq.quads.push(GpuQuad {
-                    corners: [c(0.0, 0.6), c(0.6, 0.6), c(0.0, 0.0), c(0.6, 0.0)],
+                    corners: [c(0.0, side), c(side, side), c(0.0, 0.0), c(side, 0.0)],
                     uv: [0.0, 0.0, 0.1, 0.1],
                 });
                 seq.steps.push(Step::Quad(i));
@@ -105,14 +114,21 @@ impl Renderer {
         let cache_small = time(&empty, small);
         let cache_large = time(&empty, large);
         let per_pixel = (cache_large - cache_small) / f64::from(large * large - small * small);
-        let (q_few, q_many) = (200u32, 2000u32);
-        let per_quad =
-            (time(&quads(q_many), 0) - time(&quads(q_few), 0)) / f64::from(q_many - q_few);
+        let (q_few, q_many, small_side) = (200u32, 2000u32, 0.6f32);
+        let per_quad = (time(&quads(q_many, small_side), 0) - time(&quads(q_few, small_side), 0))
+            / f64::from(q_many - q_few);
+        // The same count of quads, small and large: the difference is fill.
+        let large_side = 6.0f32;
+        let area = |side: f32| (f64::from(side) * px_per_unit).powi(2);
+        let per_quad_pixel = (time(&quads(q_few, large_side), 0)
+            - time(&quads(q_few, small_side), 0))
+            / (f64::from(q_few) * (area(large_side) - area(small_side)));
         Ok(CostModel {
             ms_per_triangle: per_triangle.max(FLOOR),
             ms_per_cache_pixel: per_pixel.max(FLOOR),
             ms_per_cache: cache_small.max(FLOOR),
             ms_per_quad: per_quad.max(FLOOR),
+            ms_per_quad_pixel: per_quad_pixel.max(FLOOR),
             measured: true,
         })
     }

@@ -28,7 +28,10 @@ impl Planner {
             if c.zone.contains(w.camera.eye) {
                 c.last_used = self.frame;
                 self.status[i] = Status::DrawCache;
-                self.cost[i] = w.options.costs.ms_per_quad;
+                self.cost[i] = w
+                    .options
+                    .costs
+                    .quad_ms(u64::from(c.width) * u64::from(c.height));
                 self.zone[i] = c.zone;
                 return;
             }
@@ -78,8 +81,9 @@ impl Planner {
             contents
         };
         let [_, _, rw, rh] = candidate.rect.map(|v| v.max(1) as u32);
-        let create = costs.create_ms(u64::from(rw) * u64::from(rh), drawn);
-        let amortized = create / f64::from(candidate.life.max(1)) + costs.ms_per_quad;
+        let pixels = u64::from(rw) * u64::from(rh);
+        let create = costs.create_ms(pixels, drawn);
+        let amortized = create / f64::from(candidate.life.max(1)) + costs.quad_ms(pixels);
         if amortized >= contents || w.made >= w.options.max_caches_per_frame {
             return;
         }
@@ -113,7 +117,7 @@ impl Planner {
             last_used: self.frame,
         });
         self.status[i] = Status::DrawCache;
-        self.cost[i] = costs.ms_per_quad;
+        self.cost[i] = costs.quad_ms(pixels);
         self.zone[i] = candidate.zone;
     }
 
