@@ -116,3 +116,39 @@ fn a_zero_budget_inserts_one_page_a_call_and_keeps_the_rest_in_order() {
     }
     assert_eq!(w.pump_for(Duration::from_secs(10)).expect("pump"), 3);
 }
+
+#[test]
+fn requests_stop_where_the_cache_could_not_keep_them_beside_the_frames_pages() {
+    let file = scene();
+    assert!(file.pages.len() >= 8, "{} pages", file.pages.len());
+    let len = |p: usize| file.header.pages[p].length as usize;
+    // Room for pages 0 and 1 (the frame's) and for pages 2 and 3 more.
+    let budget = (0..4).map(len).sum::<usize>() + 8;
+    let (mut v, wire) = viewer(&file, budget);
+    wire.push(frame(encode_page_frame(&file.pages[1])));
+    v.pump(Duration::ZERO).expect("pump");
+    v.touch(&[0, 1]);
+    let wanted: Vec<WantedPage> = (2..8)
+        .map(|p| WantedPage {
+            page: p,
+            priority: 100.0 - f64::from(p),
+        })
+        .collect();
+    v.request(&wanted);
+    assert_eq!(v.outstanding(), 2, "pages 2 and 3 fit, 4 does not");
+    // A cache with room for everything asks for everything.
+    let (mut roomy, _) = viewer(&file, usize::MAX);
+    roomy.touch(&[0]);
+    roomy.request(&wanted);
+    assert_eq!(roomy.outstanding(), 6);
+    // A cache the frame already fills asks for nothing (the page would
+    // push out one the frame draws), and cancels what it had asked for.
+    let (mut full, full_wire) = viewer(&file, len(0) + len(1));
+    full_wire.push(frame(encode_page_frame(&file.pages[1])));
+    full.pump(Duration::ZERO).expect("pump");
+    full.request(&wanted);
+    assert!(full.outstanding() > 0, "before the frame touched its pages");
+    full.touch(&[0, 1]);
+    full.request(&wanted);
+    assert_eq!(full.outstanding(), 0);
+}

@@ -4,11 +4,11 @@
 //! wanted below anything the frame itself needs, so they only use
 //! bandwidth the frame leaves free.
 
-use farfield_protocol::bsp_codec::Split;
+use farfield_protocol::bsp_codec::{BspSkeleton, Split};
 use farfield_protocol::camera::Camera;
 
 use super::{Planner, Status, Walk};
-use crate::bsp::{box_culled, node_priority};
+use crate::bsp::{box_culled, leaf_page, node_priority};
 
 /// How much a wanted page ranks below the frame's own: a prefetched
 /// page's projected size is scaled by this.
@@ -19,7 +19,9 @@ const ENTERING_RANK: f64 = 1e-4;
 impl Planner {
     /// Pre-caching: the pages of caches drawn this frame whose zone the
     /// viewer leaves soon, wanted at a low priority, so the geometry is
-    /// resident when they must be made again.
+    /// resident when they must be made again; those already resident (and
+    /// their leaves' prototypes) are touched, so a small page cache does
+    /// not let them lapse just before they are needed.
     pub(super) fn precache(&self, w: &mut Walk) {
         for (i, c) in self.caches.iter().enumerate() {
             let Some(c) = c else { continue };
@@ -90,7 +92,8 @@ impl Planner {
         }
     }
 
-    /// Wants the pages of the leaves under node `n` that are not resident.
+    /// Wants the pages of the leaves under node `n` that are not resident,
+    /// and touches those that are (with their prototypes' pages).
     fn want_leaves_under(&self, w: &mut Walk, n: u32, rank: f64) {
         let mut stack = vec![n];
         while let Some(n) = stack.pop() {
@@ -100,9 +103,19 @@ impl Planner {
             match node.split {
                 Split::Leaf { leaf } => {
                     let page = w.s.leaf_page(leaf);
-                    if !w.h.is_resident(page as usize) {
-                        let (size, off) = node_priority(&w.view, node.box_min, node.box_max);
+                    let (size, off) = node_priority(&w.view, node.box_min, node.box_max);
+                    let Some(content) = leaf_page(w.h, page) else {
                         w.pages.want(page, size * rank, off);
+                        continue;
+                    };
+                    w.pages.touch(page);
+                    for p in &content.placements {
+                        let proto = BspSkeleton::prototype_page(p.prototype);
+                        if w.h.is_resident(proto as usize) {
+                            w.pages.touch(proto);
+                        } else {
+                            w.pages.want(proto, size * rank, off);
+                        }
                     }
                 }
                 Split::Plane { back, front, .. } => stack.extend([back, front]),
