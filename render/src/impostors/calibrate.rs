@@ -77,6 +77,9 @@ impl Renderer {
             let mut seq = Sequence::default();
             for i in 0..n {
                 // Small triangles scattered over the view at depth 10.
+                // Scattered by two primes; in u64, so 200,000 of them
+                // cannot overflow.
+                let i = u64::from(i);
                 let x = f32::from((i * 7919 % 200) as u16) * 0.08 - 8.0;
                 let y = f32::from((i * 104_729 % 200) as u16) * 0.08 - 8.0;
                 for (dx, dy) in [(0.0, 0.0), (0.15, 0.0), (0.0, 0.15)] {

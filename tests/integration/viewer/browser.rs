@@ -358,7 +358,8 @@ fn one_finger_orbits_two_fingers_pinch_to_zoom_and_w_flies_forward() {
 
     // W (with the page focused by a click in a corner): forward along the view.
     browser.click(5, 5);
-    browser.hold_key("w", 1000);
+    // Held long enough for a loaded machine's slow frames to see it down.
+    browser.hold_key("w", 2500);
     let flown = refined_away_from(&browser, &pinched, "refined after flying forward");
     let (eye3, target3) = eye_target(&flown);
     let step = eye3 - eye2;
