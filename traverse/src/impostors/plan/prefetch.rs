@@ -58,7 +58,8 @@ impl Planner {
             ..*w.camera
         }
         .view(1e-9);
-        let mut found: Vec<(f64, u32)> = Vec::new();
+        // (distance from the future eye, page, its priority there).
+        let mut found: Vec<(f64, u32, (f64, f64))> = Vec::new();
         let mut stack = vec![0u32];
         while let Some(n) = stack.pop() {
             let Some(node) = w.s.nodes.get(n as usize).copied() else {
@@ -72,23 +73,17 @@ impl Planner {
                     let page = w.s.leaf_page(leaf);
                     let now_culled = box_culled(&w.view, node.box_min, node.box_max);
                     if now_culled && !w.h.is_resident(page as usize) {
-                        let distance = (node.box_min + node.box_max) * 0.5 - eye;
-                        found.push((distance.length(), n));
+                        let distance = ((node.box_min + node.box_max) * 0.5 - eye).length();
+                        let priority = node_priority(&future, node.box_min, node.box_max);
+                        found.push((distance, page, priority));
                     }
                 }
                 Split::Plane { back, front, .. } => stack.extend([back, front]),
             }
         }
         found.sort_by(|a, b| a.0.total_cmp(&b.0));
-        for &(_, n) in found.iter().take(o.entering_pages) {
-            let Some(node) = w.s.nodes.get(n as usize).copied() else {
-                continue;
-            };
-            let Split::Leaf { leaf } = node.split else {
-                continue;
-            };
-            let (size, off) = node_priority(&future, node.box_min, node.box_max);
-            w.pages.want(w.s.leaf_page(leaf), size * ENTERING_RANK, off);
+        for &(_, page, (size, off)) in found.iter().take(o.entering_pages) {
+            w.pages.want(page, size * ENTERING_RANK, off);
         }
     }
 
