@@ -52,9 +52,14 @@ pub enum Command {
     BenchPlp(Box<BenchPlpArgs>),
     /// Error against run time: sweep a mode's parameter over cameras, against a reference.
     Bench(Box<BenchArgs>),
-    /// One HTML page (plots, tables, machine, the papers' figures) from bench folders.
+    /// Many headless clients against one memory server: request latency
+    /// quantiles, throughput, errors and reconnects, time to first image
+    /// and to refined, and the server's metrics over the run.
+    Loadtest(Box<LoadtestArgs>),
+    /// One HTML page (plots, tables, machine, the papers' figures) from
+    /// bench and load-test folders.
     Report {
-        /// Folders written by `farfield bench --out`.
+        /// Folders written by `farfield bench --out` or `farfield loadtest --out`.
         #[arg(required = true)]
         dirs: Vec<PathBuf>,
         #[arg(long)]
@@ -276,6 +281,50 @@ pub struct BenchCubesArgs {
 }
 
 #[derive(Debug, clap::Args)]
+pub struct LoadtestArgs {
+    /// The memory server (http://host:port); every connection goes here.
+    #[arg(long)]
+    pub server: String,
+    /// The scene's name on the server.
+    #[arg(long)]
+    pub scene: String,
+    /// Clients to run (at most 4096).
+    #[arg(long)]
+    pub clients: usize,
+    /// Seconds to run (at most 3600).
+    #[arg(long)]
+    pub duration: f64,
+    /// Seconds over which the clients start, evenly.
+    #[arg(long, default_value_t = 0.0)]
+    pub ramp: f64,
+    /// A camera path (JSON keyframes, see `farfield path`); each client
+    /// flies it back and forth from its own phase. The demo's flight if not given.
+    #[arg(long)]
+    pub path: Option<PathBuf>,
+    /// Folder for seconds.csv, clients.csv, loadtest.json, plots, index.html.
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Each client's view, WIDTHxHEIGHT.
+    #[arg(long, default_value = "800x600", value_parser = parse_size)]
+    pub size: (u32, u32),
+    /// Each client's threshold in pixels.
+    #[arg(long, default_value_t = 1.0)]
+    pub threshold: f64,
+    /// Traversals a second per client.
+    #[arg(long, default_value_t = 10.0)]
+    pub fps: f64,
+    /// Each client's resident pages, MiB.
+    #[arg(long, default_value_t = 64)]
+    pub client_cache_mib: usize,
+    /// The server's access token.
+    #[arg(long, value_name = "TOKEN")]
+    pub token: Option<String>,
+    /// Print the summary as JSON.
+    #[arg(long)]
+    pub json: bool,
+}
+
+#[derive(Debug, clap::Args)]
 pub struct BenchPlpArgs {
     /// A PLP file (`farfield-server build --kind plp`).
     #[arg(long)]
@@ -422,6 +471,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Render(args) => commands::render::run(*args),
         Command::View(args) => commands::view::run(view_job(*args)?),
         Command::Bench(args) => commands::measure::bench(*args),
+        Command::Loadtest(args) => commands::measure::loadtest(*args),
         Command::Report { dirs, out } => commands::measure::report(&dirs, &out),
         Command::BenchCubes(args) => commands::measure::bench_cubes(*args),
         Command::BenchPlp(args) => commands::measure::bench_plp(*args),

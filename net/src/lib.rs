@@ -31,7 +31,9 @@ pub mod websocket;
 #[cfg(test)]
 mod tests;
 
-pub use session::{MAX_PAGE_FAILURES, Session, SessionError, SessionEvent, SessionOptions};
+pub use session::{
+    LATENCY_SAMPLES, MAX_PAGE_FAILURES, Session, SessionError, SessionEvent, SessionOptions,
+};
 pub use stats::{FailedPage, NetStats};
 pub use transport::{Closing, Transport, TransportEvent};
 pub use url::{stream_url, with_token};

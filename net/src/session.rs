@@ -16,7 +16,7 @@
 //! cannot change it, and so does a server never reached within
 //! [`SessionOptions::first_connect_grace`].
 
-use std::collections::HashMap;
+use std::collections::{HashMap, VecDeque};
 use std::time::Duration;
 
 use bytes::Bytes;
@@ -126,6 +126,18 @@ enum Link {
     Ended,
 }
 
+/// Most request-to-arrival times a session keeps for its owner to take:
+/// an owner that never takes them (a viewer) holds a bounded few.
+pub const LATENCY_SAMPLES: usize = 4096;
+
+/// A page asked for: the priority last sent, and when it was first asked
+/// for on this connection (its latency runs from there).
+#[derive(Debug, Clone, Copy)]
+struct Wish {
+    priority: f32,
+    since: Instant,
+}
+
 /// The client's side of one scene's session.
 #[derive(Debug)]
 pub struct Session<T: Transport> {
@@ -137,8 +149,11 @@ pub struct Session<T: Transport> {
     first_deadline: Instant,
     backoff: Duration,
     header: Option<FileHeader>,
-    /// Asked for and not yet arrived: page -> priority sent.
-    requested: HashMap<u32, f32>,
+    /// Asked for and not yet arrived.
+    requested: HashMap<u32, Wish>,
+    /// Request-to-arrival times of the latest pages that were asked for
+    /// (at most [`LATENCY_SAMPLES`]; see [`Session::take_latencies`]).
+    latencies: VecDeque<Duration>,
     /// Per page that failed: how often, and the last reason.
     failures: HashMap<u32, (u32, String)>,
     /// The last error about the scene itself (a page, a server message), which
@@ -163,6 +178,7 @@ impl<T: Transport> Session<T> {
             backoff: FIRST_BACKOFF,
             header: None,
             requested: HashMap::new(),
+            latencies: VecDeque::new(),
             failures: HashMap::new(),
             last_scene_error: None,
             stats: NetStats::default(),
@@ -340,7 +356,8 @@ impl<T: Transport> Session<T> {
         let header = FileHeader::decode(bytes).map_err(SessionError::BadHeader)?;
         match &self.header {
             Some(h) if *h != header => return Err(SessionError::SceneChanged),
-            Some(_) => {}
+            // The same scene again, on a new connection.
+            Some(_) => self.stats.reconnects += 1,
             None => {
                 out.push(SessionEvent::Header(header.clone()));
                 self.header = Some(header);
@@ -363,7 +380,12 @@ impl<T: Transport> Session<T> {
         if self.header.is_none() {
             return;
         }
-        self.requested.remove(&index);
+        if let Some(wish) = self.requested.remove(&index) {
+            if self.latencies.len() >= LATENCY_SAMPLES {
+                self.latencies.pop_front();
+            }
+            self.latencies.push_back(wish.since.elapsed());
+        }
         acks.push(index);
         out.push(SessionEvent::Page { index, bytes });
     }
@@ -421,6 +443,7 @@ impl<T: Transport> Session<T> {
             return;
         }
         let mut new = Vec::new();
+        let now = Instant::now();
         let mut still: HashMap<u32, f32> = HashMap::with_capacity(wanted.len());
         for w in wanted {
             if self.gave_up(w.page) {
@@ -428,8 +451,8 @@ impl<T: Transport> Session<T> {
             }
             let priority = w.priority.min(f64::from(f32::MAX)) as f32;
             still.insert(w.page, priority);
-            match self.requested.get(&w.page) {
-                Some(&p) if (p - priority).abs() <= 0.25 * p.abs() => {}
+            match self.requested.get(&w.page).map(|w| w.priority) {
+                Some(p) if (p - priority).abs() <= 0.25 * p.abs() => {}
                 _ => new.push(PageWish {
                     page: w.page,
                     priority,
@@ -455,7 +478,15 @@ impl<T: Transport> Session<T> {
                 .filter(|w| !self.requested.contains_key(&w.page))
                 .count() as u64;
             for w in &new {
-                self.requested.insert(w.page, w.priority);
+                // A new priority for a page already asked for keeps its start.
+                let since = self.requested.get(&w.page).map_or(now, |old| old.since);
+                self.requested.insert(
+                    w.page,
+                    Wish {
+                        priority: w.priority,
+                        since,
+                    },
+                );
             }
             self.send(&ClientMessage::Request { pages: new });
         }
@@ -463,6 +494,14 @@ impl<T: Transport> Session<T> {
 
     fn send(&mut self, message: &ClientMessage) {
         self.transport.send(codec::encode_control(message));
+    }
+
+    /// The request-to-arrival times of pages asked for (not page 0 nor
+    /// pushes, which nobody asked for) since the last call, oldest first;
+    /// at most the latest [`LATENCY_SAMPLES`]. A load test takes them every
+    /// tick; a viewer may never.
+    pub fn take_latencies(&mut self) -> Vec<Duration> {
+        self.latencies.drain(..).collect()
     }
 
     /// Pages given up on (repeated checksum failures, or the server cannot

@@ -18,6 +18,8 @@ pub struct NetStats {
     /// Pages the server said it cannot send (corrupt on its disk).
     pub pages_unavailable: u64,
     pub disconnects: u64,
+    /// Connections to the same scene opened again after one was lost.
+    pub reconnects: u64,
     /// Reported through the render report's own `last_error`.
     #[serde(skip)]
     pub last_error: Option<String>,

@@ -216,6 +216,7 @@ fn a_reconnect_waits_then_asks_again_only_for_what_is_missing() {
         "the same scene again says nothing: {events:?}"
     );
     assert!(s.is_connected());
+    assert_eq!(s.stats.reconnects, 1);
     // What the traversal still lacks (page 1 is resident) is asked for.
     s.request(&wanted(&[2, 3]));
     let messages = sent(&wire);
@@ -224,6 +225,49 @@ fn a_reconnect_waits_then_asks_again_only_for_what_is_missing() {
         Some(ClientMessage::Hello { .. })
     ));
     assert_eq!(requested(&messages), vec![2, 3]);
+}
+
+#[test]
+fn latencies_run_from_the_first_request_to_arrival_and_only_for_pages_asked_for() {
+    let file = scene();
+    let (mut s, wire) = connected(&file);
+    // Page 0 arrives unasked (as the server sends it): no latency.
+    wire.push(frame(encode_page_frame(&file.pages[0])));
+    s.pump(Duration::ZERO).expect("pump");
+    assert!(s.take_latencies().is_empty());
+    s.request(&wanted(&[1, 2]));
+    std::thread::sleep(Duration::from_millis(30));
+    // A new priority for page 1 does not restart its clock.
+    s.request(&[
+        WantedPage {
+            page: 1,
+            priority: 100.0,
+        },
+        WantedPage {
+            page: 2,
+            priority: 10.0,
+        },
+    ]);
+    wire.push(frame(encode_page_frame(&file.pages[1])));
+    s.pump(Duration::ZERO).expect("pump");
+    let took = s.take_latencies();
+    assert_eq!(took.len(), 1, "{took:?}");
+    assert!(took[0] >= Duration::from_millis(30), "{took:?}");
+    assert!(s.take_latencies().is_empty(), "taken once");
+    // A page cancelled before it arrives counts for nothing.
+    s.request(&wanted(&[1]));
+    wire.push(frame(encode_page_frame(&file.pages[2])));
+    s.pump(Duration::ZERO).expect("pump");
+    assert!(s.take_latencies().is_empty());
+    // An owner that never takes them holds at most LATENCY_SAMPLES.
+    for _ in 0..(LATENCY_SAMPLES / 2 + 1) {
+        s.request(&wanted(&[3, 4]));
+        wire.push(frame(encode_page_frame(&file.pages[3])));
+        wire.push(frame(encode_page_frame(&file.pages[4])));
+        s.pump(Duration::ZERO).expect("pump");
+        s.request(&[]);
+    }
+    assert_eq!(s.take_latencies().len(), LATENCY_SAMPLES);
 }
 
 #[test]

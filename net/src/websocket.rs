@@ -280,6 +280,23 @@ pub async fn drive(
     wire: &QueueTransport,
     mut each: impl FnMut(&mut Session<QueueTransport>, Vec<SessionEvent>) -> bool,
 ) -> Result<(), SessionError> {
+    drive_wire(wire, || {
+        let events = session.pump(Duration::ZERO)?;
+        Ok(each(session, events))
+    })
+    .await
+}
+
+/// Like [`drive`], for an owner that keeps its session inside something
+/// else (a load client's `Viewer`, whose session is
+/// over `wire` boxed): moves `wire`'s frames to and from its sockets and
+/// calls `step` after each batch, or every 20 ms when nothing came. `step`
+/// pumps the session itself and says whether to go on; its error ends the
+/// drive.
+pub async fn drive_wire<E>(
+    wire: &QueueTransport,
+    mut step: impl FnMut() -> Result<bool, E>,
+) -> Result<(), E> {
     let mut socket: Option<Socket> = None;
     // An attempt under way; the session's timers (the first-connect grace)
     // keep running while it is, and may abandon it.
@@ -304,8 +321,7 @@ pub async fn drive(
                 Err((reason, how)) => wire.push(TransportEvent::Closed { reason, how }),
             }
         }
-        let events = session.pump(Duration::ZERO)?;
-        if !each(session, events) {
+        if !step()? {
             return Ok(());
         }
         let Some(s) = socket.as_mut() else {

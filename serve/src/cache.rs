@@ -119,7 +119,7 @@ impl PageCache {
         if let Some(error) = known {
             return Err(PageError::Format(error));
         }
-        let frame = read_verified(scene, page).inspect_err(|e| match e {
+        let frame = read_verified(scene, page, metrics).inspect_err(|e| match e {
             PageError::Format(error) => {
                 Metrics::add(&metrics.corrupt_pages, 1);
                 tracing::warn!(scene = %scene.name, page, "corrupt page, never sent: {error}");
@@ -166,10 +166,12 @@ impl PageCache {
 
 /// The page's stored bytes as a frame, after checking its checksum, header
 /// and agreement with the directory.
-fn read_verified(scene: &ServedScene, page: u32) -> Result<Bytes, PageError> {
+fn read_verified(scene: &ServedScene, page: u32, metrics: &Metrics) -> Result<Bytes, PageError> {
     let len = scene.page_len(page).unwrap_or(0) as usize;
     let mut frame = Vec::with_capacity(len + 1);
     frame.push(FrameKind::Page as u8);
+    Metrics::add(&metrics.disk_reads, 1);
+    Metrics::add(&metrics.disk_read_bytes, len as u64);
     scene.source.read_page(page, &mut frame)?;
     Ok(Bytes::from(frame))
 }

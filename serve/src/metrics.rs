@@ -28,6 +28,10 @@ pub struct Metrics {
     pub pages_pushed: AtomicU64,
     pub cache_hits: AtomicU64,
     pub cache_misses: AtomicU64,
+    /// Pages read from the scenes' files (misses and read-ahead), and
+    /// their bytes: what the disk served.
+    pub disk_reads: AtomicU64,
+    pub disk_read_bytes: AtomicU64,
     pub cache_bytes: AtomicU64,
     pub cache_pages: AtomicU64,
     pub cache_capacity_bytes: AtomicU64,
@@ -99,6 +103,8 @@ pub struct MetricsSnapshot {
     pub pages_pushed: u64,
     pub cache_hits: u64,
     pub cache_misses: u64,
+    pub disk_reads: u64,
+    pub disk_read_bytes: u64,
     pub cache_bytes: u64,
     pub cache_pages: u64,
     pub cache_capacity_bytes: u64,
@@ -116,6 +122,24 @@ pub struct MetricsSnapshot {
     pub limit_hits: std::collections::BTreeMap<&'static str, u64>,
     pub latency_count: u64,
     pub latency_sum_s: f64,
+    /// The server process's resident memory (Linux; `None` elsewhere).
+    pub resident_bytes: Option<u64>,
+}
+
+/// The process's resident set in bytes, from `/proc/self/statm` (Linux).
+#[cfg(not(target_os = "linux"))]
+pub fn resident_bytes() -> Option<u64> {
+    None
+}
+
+/// The process's resident set in bytes, from `/proc/self/statm` (Linux).
+#[cfg(target_os = "linux")]
+pub fn resident_bytes() -> Option<u64> {
+    let statm = std::fs::read_to_string("/proc/self/statm").ok()?;
+    let pages: u64 = statm.split_whitespace().nth(1)?.parse().ok()?;
+    // SAFETY: sysconf has no preconditions; it returns -1 on error.
+    let page = unsafe { libc::sysconf(libc::_SC_PAGESIZE) };
+    Some(pages * u64::try_from(page).ok()?)
 }
 
 fn get(a: &AtomicU64) -> u64 {
@@ -146,6 +170,8 @@ impl Metrics {
             pages_pushed: get(&self.pages_pushed),
             cache_hits: get(&self.cache_hits),
             cache_misses: get(&self.cache_misses),
+            disk_reads: get(&self.disk_reads),
+            disk_read_bytes: get(&self.disk_read_bytes),
             cache_bytes: get(&self.cache_bytes),
             cache_pages: get(&self.cache_pages),
             cache_capacity_bytes: get(&self.cache_capacity_bytes),
@@ -166,6 +192,7 @@ impl Metrics {
                 .collect(),
             latency_count,
             latency_sum_s,
+            resident_bytes: resident_bytes(),
         }
     }
 
@@ -208,6 +235,18 @@ impl Metrics {
             "counter",
             "Page lookups that read the scene's file.",
             s.cache_misses,
+        );
+        metric(
+            "farfield_disk_reads_total",
+            "counter",
+            "Pages read from the scenes' files (cache misses and read-ahead).",
+            s.disk_reads,
+        );
+        metric(
+            "farfield_disk_read_bytes_total",
+            "counter",
+            "Bytes read from the scenes' files.",
+            s.disk_read_bytes,
         );
         metric(
             "farfield_page_cache_bytes",
@@ -282,6 +321,15 @@ impl Metrics {
             s.pages_cancelled,
         );
         metric("farfield_scenes", "gauge", "Scenes being served.", s.scenes);
+        if let Some(rss) = s.resident_bytes {
+            // The name Prometheus's own process collectors use.
+            metric(
+                "process_resident_memory_bytes",
+                "gauge",
+                "Resident memory size in bytes.",
+                rss,
+            );
+        }
         let name = "farfield_limit_hits_total";
         let _ = writeln!(
             out,

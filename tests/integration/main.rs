@@ -15,6 +15,7 @@ mod impostor_tools;
 mod impostors;
 mod kinds;
 mod layout;
+mod loadtest;
 mod plp;
 mod progress;
 mod real_data;

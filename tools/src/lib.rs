@@ -12,6 +12,9 @@
 //! - [`bench_plp`]: PLP's Table 1 and Figures 8 and 9 (`farfield bench-plp`):
 //!   visible coverage from item buffers, wrong pixels, frame time.
 //! - [`bench_stream`]: the memory server on loopback (`farfield bench-stream`).
+//! - [`loadtest`]: many headless clients against one server (`farfield
+//!   loadtest`): latency quantiles, throughput, errors, the server's
+//!   metrics over time.
 //! - [`bench_build`]: `farfield-server bench build` and `bench traverse`:
 //!   build throughput, traversal rate.
 //! - [`reference`](mod@reference): a scene's full geometry, the reference renders are
@@ -24,6 +27,7 @@ pub mod bench_build;
 pub mod bench_cubes;
 pub mod bench_plp;
 pub mod bench_stream;
+pub mod loadtest;
 pub mod meters;
 pub mod reference;
 pub mod stats;

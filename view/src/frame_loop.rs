@@ -190,9 +190,45 @@ pub fn finer_threshold(threshold: f64, finest: f64) -> f64 {
     }
 }
 
-/// One frame: traverse what is resident, mark what was used, ask for what
-/// is missing, draw (asking first, so pages travel while the frame draws). The image lands in `rgba`. `threshold` is the kind's
-/// threshold in pixels (the splat size for spheres, eps for cubes).
+/// One frame's traversal without a draw: traverse what is resident, mark
+/// what was used, ask for what is missing. What to draw is left in `cut`
+/// ([`LastCut::draw_list`]). A headless client (the load test's) runs
+/// only this; [`draw_frame`] draws after it. Returns the threshold used
+/// and the traversal's milliseconds.
+pub fn traverse_frame(
+    viewer: &mut Viewer,
+    camera: &Camera,
+    threshold: f64,
+    min_alpha: u8,
+    cut: &mut LastCut,
+) -> anyhow::Result<(f64, f64)> {
+    let Some(h) = viewer.hierarchy() else {
+        bail!("no scene header yet");
+    };
+    let threshold = match cut.final_threshold {
+        Some(fixed) if !cut.kind_for(h.header.kind).adaptive_threshold => fixed,
+        _ => threshold,
+    };
+    let options = TraversalOptions {
+        threshold_px: threshold,
+        min_alpha,
+        record_pages: true,
+        budget: cut.time_budget.map_or(cut.budget, |b| b.budget()),
+        costs: cut.costs.unwrap_or_default(),
+    };
+    let traversal = cut.traversal_for(h.header.kind);
+    let t = Instant::now();
+    traversal.traverse(h, camera, &options);
+    let traverse_ms = t.elapsed().as_secs_f64() * 1e3;
+    viewer.touch(traversal.touched_pages());
+    viewer.request(traversal.wanted());
+    Ok((threshold, traverse_ms))
+}
+
+/// One frame: [`traverse_frame`], then draw (asking first, so pages
+/// travel while the frame draws). The image lands in `rgba`. `threshold`
+/// is the kind's threshold in pixels (the splat size for spheres, eps for
+/// cubes).
 pub fn draw_frame(
     viewer: &mut Viewer,
     renderer: &mut Renderer,
@@ -202,36 +238,21 @@ pub fn draw_frame(
     cut: &mut LastCut,
     rgba: &mut Vec<u8>,
 ) -> anyhow::Result<FrameTimes> {
-    let Some(h) = viewer.hierarchy() else {
-        bail!("no scene header yet");
-    };
-    if h.header.kind == HierarchyKind::Bsp && cut.costs.is_none() {
+    if viewer
+        .header()
+        .is_some_and(|h| h.kind == HierarchyKind::Bsp)
+        && cut.costs.is_none()
+    {
         cut.costs = Some(renderer.measure_impostor_costs()?);
     }
-    let threshold = match cut.final_threshold {
-        Some(fixed) if !cut.kind_for(h.header.kind).adaptive_threshold => fixed,
-        _ => threshold,
-    };
-    let options = TraversalOptions {
-        threshold_px: threshold,
-        min_alpha: style.coverage.min_alpha(),
-        record_pages: true,
-        budget: cut.time_budget.map_or(cut.budget, |b| b.budget()),
-        costs: cut.costs.unwrap_or_default(),
-    };
     let time_budget = cut.time_budget;
-    let traversal = cut.traversal_for(h.header.kind);
-    let t = Instant::now();
-    traversal.traverse(h, camera, &options);
-    let traverse_ms = t.elapsed().as_secs_f64() * 1e3;
-    let drawn = traversal.counts().drawn;
-    // Ask before drawing, so the pages are on their way during the draw.
-    viewer.touch(traversal.touched_pages());
-    viewer.request(traversal.wanted());
-    let Some(h) = viewer.hierarchy() else {
+    let (threshold, traverse_ms) =
+        traverse_frame(viewer, camera, threshold, style.coverage.min_alpha(), cut)?;
+    let drawn = cut.counts().drawn;
+    let (Some(h), Some(list)) = (viewer.hierarchy(), cut.draw_list()) else {
         bail!("no scene header yet");
     };
-    let image = renderer.draw(h, camera, traversal.draw_list(), style)?;
+    let image = renderer.draw(h, camera, list, style)?;
     *rgba = image.rgba;
     if let Some(mut b) = time_budget {
         // The upload and draw grow with the triangles; traversal is fixed.

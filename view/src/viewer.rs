@@ -307,6 +307,14 @@ impl Viewer {
         });
     }
 
+    /// Request-to-arrival times of the pages asked for since the last
+    /// call (see [`Session::take_latencies`]); none for a file.
+    pub fn take_latencies(&mut self) -> Vec<Duration> {
+        self.session
+            .as_mut()
+            .map_or_else(Vec::new, Session::take_latencies)
+    }
+
     /// Pages given up on (repeated checksum failures, or the server cannot
     /// send them), by page index, with the last reason of each.
     pub fn failed_pages(&self) -> Vec<FailedPage> {

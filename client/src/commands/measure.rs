@@ -171,3 +171,36 @@ pub fn bench_stream(
     }
     Ok(())
 }
+
+/// `farfield loadtest`: many headless clients against one server.
+pub fn loadtest(args: crate::cli::LoadtestArgs) -> anyhow::Result<()> {
+    let seconds = |name: &str, s: f64| {
+        std::time::Duration::try_from_secs_f64(s)
+            .map_err(|_| anyhow::anyhow!("--{name} must be a number of seconds, at least 0"))
+    };
+    let job = farfield_tools::loadtest::LoadJob {
+        ramp: seconds("ramp", args.ramp)?,
+        path: args.path,
+        width: args.size.0,
+        height: args.size.1,
+        threshold_px: args.threshold,
+        fps: args.fps,
+        client_cache_bytes: args.client_cache_mib.max(1) << 20,
+        token: args.token,
+        ..farfield_tools::loadtest::LoadJob::new(
+            &args.server,
+            &args.scene,
+            args.clients,
+            seconds("duration", args.duration)?,
+            args.out,
+        )
+    };
+    let report = farfield_tools::loadtest::run(&job)?;
+    if args.json {
+        println!("{}", serde_json::to_string(&report)?);
+    } else {
+        print!("{}", farfield_tools::loadtest::describe(&report));
+        println!("wrote {}", job.out.join("index.html").display());
+    }
+    Ok(())
+}

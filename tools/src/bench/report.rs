@@ -36,10 +36,51 @@ const CUBES_TABLE_2: [(f64, f64, f64); 4] = [
     (14.0, 5.4, 136.3),
 ];
 
-/// Reads bench folders and writes `index.html` and the plots into `out`.
+/// Reads bench folders (`bench.csv`) and load-test folders
+/// (`loadtest.json`) and writes `index.html` and the plots into `out`.
 /// Returns the page's path.
 pub fn write_report(dirs: &[PathBuf], out: &Path) -> anyhow::Result<PathBuf> {
     std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
+    let (mut benches, mut loads) = (Vec::new(), Vec::new());
+    for d in dirs {
+        if d.join("bench.csv").exists() {
+            benches.push(d.clone());
+        } else if d.join(crate::loadtest::output::SUMMARY).exists() {
+            loads.push(d.clone());
+        } else {
+            anyhow::bail!(
+                "{} has neither bench.csv nor {} (run farfield bench --out {} or farfield loadtest --out {} first)",
+                d.display(),
+                crate::loadtest::output::SUMMARY,
+                d.display(),
+                d.display()
+            );
+        }
+    }
+    let mut html = String::new();
+    html.push_str("<!doctype html>\n<html><head><meta charset=\"utf-8\"><title>farfield: measurements</title>\n<style>body{font-family:sans-serif;max-width:1000px;margin:2em auto}table{border-collapse:collapse;font-size:13px}td,th{border:1px solid #ccc;padding:2px 6px;text-align:right}th{background:#eee}.paper{background:#fff8e0}</style></head><body>\n");
+    if !benches.is_empty() {
+        bench_sections(&benches, out, &mut html)?;
+    }
+    for (i, d) in loads.iter().enumerate() {
+        crate::loadtest::output::html_section(d, out, i, &mut html)?;
+    }
+    html.push_str("</body></html>\n");
+    let page = out.join("index.html");
+    std::fs::write(&page, html).with_context(|| format!("writing {}", page.display()))?;
+    Ok(page)
+}
+
+/// Escapes text for HTML.
+pub fn esc(s: &str) -> String {
+    s.replace('&', "&amp;")
+        .replace('<', "&lt;")
+        .replace('>', "&gt;")
+}
+
+/// The bench folders' part of the page: plots, every row, the papers'
+/// figures.
+fn bench_sections(dirs: &[PathBuf], out: &Path, html: &mut String) -> anyhow::Result<()> {
     let (mut all_rows, mut all_progress, mut metas) =
         (Vec::<Row>::new(), Vec::<ProgressRow>::new(), Vec::new());
     for d in dirs {
@@ -62,13 +103,6 @@ pub fn write_report(dirs: &[PathBuf], out: &Path) -> anyhow::Result<PathBuf> {
         }
     }
     let plotted = plots::write_all(out, &all_rows, &all_progress)?;
-    let mut html = String::new();
-    let esc = |s: &str| {
-        s.replace('&', "&amp;")
-            .replace('<', "&lt;")
-            .replace('>', "&gt;")
-    };
-    html.push_str("<!doctype html>\n<html><head><meta charset=\"utf-8\"><title>farfield: error against run time</title>\n<style>body{font-family:sans-serif;max-width:1000px;margin:2em auto}table{border-collapse:collapse;font-size:13px}td,th{border:1px solid #ccc;padding:2px 6px;text-align:right}th{background:#eee}.paper{background:#fff8e0}</style></head><body>\n");
     html.push_str("<h1>Error against run time</h1>\n");
     html.push_str("<h2>Where this was measured</h2>\n<ul>\n");
     let _ = writeln!(
@@ -163,10 +197,8 @@ pub fn write_report(dirs: &[PathBuf], out: &Path) -> anyhow::Result<PathBuf> {
             "<tr><td>{d}</td><td>{tree}</td><td>{molecule}</td></tr>"
         );
     }
-    html.push_str("</table>\n<p>Ours, on this project's scenes: docs/experiments.md and <code>farfield bench-cubes</code>.</p>\n</body></html>\n");
-    let page = out.join("index.html");
-    std::fs::write(&page, html).with_context(|| format!("writing {}", page.display()))?;
-    Ok(page)
+    html.push_str("</table>\n<p>Ours, on this project's scenes: docs/experiments.md and <code>farfield bench-cubes</code>.</p>\n");
+    Ok(())
 }
 
 #[cfg(test)]
@@ -256,7 +288,11 @@ mod tests {
         assert!(html.contains("QSplat, Figure 1") && html.contains("8308"));
         // A folder without a bench is a clear error.
         let e = write_report(&[dir.join("nothing")], &out).unwrap_err();
-        assert!(e.to_string().contains("no bench.csv"), "{e}");
+        assert!(
+            e.to_string()
+                .contains("neither bench.csv nor loadtest.json"),
+            "{e}"
+        );
         std::fs::remove_dir_all(&dir).unwrap();
     }
 }

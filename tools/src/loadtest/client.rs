@@ -1,0 +1,264 @@
+//! One load client: a real client without a GPU.
+//!
+//! Its own [`Viewer`] (resident pages, LRU, verification) over its own
+//! [`Session`](farfield_net::Session) (hello, requests, cancels,
+//! acknowledgements, reconnects), traversed by the scene kind's own
+//! traversal ([`traverse_frame`]) a few times a second; only the draw is
+//! left out. Socket and client share one task ([`drive_wire`]), so a
+//! thousand clients need no thousand threads.
+//!
+//! A client first holds its path's start camera until the view is
+//! refined (or for [`LoadJob::hold`]), as a user who opens a model and
+//! looks; then flies its path back and forth, starting at its own phase
+//! so the clients do not all look at the same place.
+
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, AtomicI64, Ordering};
+use std::time::{Duration, Instant};
+
+use farfield_net::queue::QueueTransport;
+use farfield_net::websocket::drive_wire;
+use farfield_net::{NetStats, SessionOptions};
+use farfield_view::frame_loop::{LastCut, traverse_frame};
+use farfield_view::path::CameraPath;
+use farfield_view::viewer::Viewer;
+use serde::{Deserialize, Serialize};
+
+use super::LoadJob;
+use super::recorder::{Recorder, Tick};
+
+/// What every client shares.
+#[derive(Debug)]
+pub struct Shared {
+    pub job: LoadJob,
+    pub path: CameraPath,
+    pub recorder: Recorder,
+    pub stop: AtomicBool,
+    /// Clients whose session is up now.
+    pub connected: AtomicI64,
+    pub started: Instant,
+}
+
+/// One client's figures, a row of `clients.csv`.
+#[derive(Debug, Clone, Default, Serialize, Deserialize)]
+pub struct ClientRow {
+    pub client: usize,
+    /// Seconds after the run began that this client started.
+    pub started_s: f64,
+    /// From its start to the first traversal that drew something.
+    pub first_image_ms: Option<f64>,
+    /// From its start to a view with nothing missing at the start camera.
+    pub refined_ms: Option<f64>,
+    pub pages: u64,
+    pub bytes: u64,
+    pub errors: u64,
+    pub reconnects: u64,
+    /// Sessions opened again after one ended with an error.
+    pub restarts: u64,
+    pub last_error: String,
+}
+
+/// Runs client `index` of `clients` until the run stops.
+pub async fn run(index: usize, clients: usize, shared: Arc<Shared>) -> ClientRow {
+    let job = &shared.job;
+    let start_after = job.ramp.mul_f64(index as f64 / clients.max(1) as f64);
+    let mut row = ClientRow {
+        client: index,
+        started_s: start_after.as_secs_f64(),
+        ..ClientRow::default()
+    };
+    while shared.started.elapsed() < start_after {
+        if shared.stop.load(Ordering::Relaxed) {
+            return row;
+        }
+        tokio::time::sleep(Duration::from_millis(50)).await;
+    }
+    let phase = shared.path.duration() * index as f64 / clients.max(1) as f64;
+    let mut client = Client::new(phase);
+    while !shared.stop.load(Ordering::Relaxed) {
+        let wire = QueueTransport::default();
+        let options = SessionOptions {
+            token: job.token.clone(),
+            ..SessionOptions::default()
+        };
+        let mut viewer = Viewer::over(
+            Box::new(wire.clone()),
+            &job.server,
+            &job.scene,
+            options,
+            job.client_cache_bytes,
+        );
+        client.seen = NetStats::default();
+        let ended = drive_wire(&wire, || client.step(&mut viewer, &shared, &mut row)).await;
+        client.set_connected(false, &shared);
+        let Err(e) = ended else { break };
+        // The session ended (refused, unreachable, a fatal server error):
+        // counted, and opened again after a second, as a user reloads.
+        row.errors += 1;
+        row.last_error = format!("{e:#}");
+        shared.recorder.record(&Tick {
+            errors: 1,
+            ..Tick::default()
+        });
+        row.restarts += 1;
+        for _ in 0..20 {
+            if shared.stop.load(Ordering::Relaxed) {
+                break;
+            }
+            tokio::time::sleep(Duration::from_millis(50)).await;
+        }
+    }
+    row
+}
+
+/// A client's state between steps.
+#[derive(Debug)]
+struct Client {
+    started: Instant,
+    /// Seconds into the path this client starts flying at.
+    phase: f64,
+    cut: LastCut,
+    next_frame: Instant,
+    /// When it began to fly (after the hold).
+    flying_since: Option<Instant>,
+    /// The session's counters at the last step.
+    seen: NetStats,
+    connected: bool,
+}
+
+impl Client {
+    fn new(phase: f64) -> Self {
+        let now = Instant::now();
+        Self {
+            started: now,
+            phase,
+            cut: LastCut::default(),
+            next_frame: now,
+            flying_since: None,
+            seen: NetStats::default(),
+            connected: false,
+        }
+    }
+
+    fn set_connected(&mut self, now: bool, shared: &Shared) {
+        if now != self.connected {
+            self.connected = now;
+            shared
+                .connected
+                .fetch_add(if now { 1 } else { -1 }, Ordering::Relaxed);
+        }
+    }
+
+    /// Takes what arrived, traverses when a frame is due, reports.
+    fn step(
+        &mut self,
+        viewer: &mut Viewer,
+        shared: &Shared,
+        row: &mut ClientRow,
+    ) -> anyhow::Result<bool> {
+        viewer.pump(Duration::ZERO)?;
+        self.set_connected(viewer.is_connected(), shared);
+        let job = &shared.job;
+        let now = Instant::now();
+        if now >= self.next_frame {
+            self.next_frame = now + job.frame_interval();
+            self.frame(viewer, shared, row, now)?;
+        }
+        let latencies = viewer.take_latencies();
+        let stats = viewer.stats();
+        let gave_up = viewer.failed_pages().len() as u64;
+        let tick = Tick {
+            latencies,
+            pages: stats.pages_received - self.seen.pages_received,
+            bytes: stats.bytes_received - self.seen.bytes_received,
+            // A lost connection, and a page given up on, are errors even
+            // when the session recovers.
+            errors: (stats.disconnects - self.seen.disconnects)
+                + gave_up.saturating_sub(self.seen.pages_unavailable),
+            reconnects: stats.reconnects - self.seen.reconnects,
+        };
+        self.seen = NetStats {
+            pages_unavailable: gave_up,
+            ..viewer.stats().clone()
+        };
+        row.pages += tick.pages;
+        row.bytes += tick.bytes;
+        row.errors += tick.errors;
+        row.reconnects += tick.reconnects;
+        if tick.errors > 0
+            && let Some(e) = &viewer.stats().last_error
+        {
+            row.last_error.clone_from(e);
+        }
+        shared.recorder.record(&tick);
+        Ok(!shared.stop.load(Ordering::Relaxed))
+    }
+
+    /// One traversal at this moment's camera, once page 0 is resident.
+    fn frame(
+        &mut self,
+        viewer: &mut Viewer,
+        shared: &Shared,
+        row: &mut ClientRow,
+        now: Instant,
+    ) -> anyhow::Result<()> {
+        let job = &shared.job;
+        let Some(header) = viewer.header().cloned() else {
+            return Ok(());
+        };
+        if !viewer.hierarchy().is_some_and(|h| h.is_resident(0)) {
+            return Ok(());
+        }
+        let since_start = now - self.started;
+        if self.flying_since.is_none() && since_start >= job.hold() {
+            self.flying_since = Some(now);
+        }
+        let t = match self.flying_since {
+            None => self.phase,
+            Some(since) => ping_pong(
+                self.phase + (now - since).as_secs_f64(),
+                shared.path.duration(),
+            ),
+        };
+        let camera = shared.path.camera_at(t, &header, job.width, job.height);
+        traverse_frame(viewer, &camera, job.threshold_px, 1, &mut self.cut)?;
+        let ms = since_start.as_secs_f64() * 1e3;
+        if row.first_image_ms.is_none() && self.cut.drawn() > 0 {
+            row.first_image_ms = Some(ms);
+        }
+        if self.flying_since.is_none()
+            && row.refined_ms.is_none()
+            && self.cut.missing(viewer) == 0
+            && viewer.outstanding() == 0
+        {
+            row.refined_ms = Some(ms);
+            self.flying_since = Some(now);
+        }
+        Ok(())
+    }
+}
+
+/// `t` folded into `0..=length`, back and forth, so a path flown past its
+/// end turns round instead of jumping to its start.
+fn ping_pong(t: f64, length: f64) -> f64 {
+    if !length.is_finite() || length <= 0.0 || !t.is_finite() {
+        return 0.0;
+    }
+    let period = 2.0 * length;
+    let u = t.rem_euclid(period);
+    if u <= length { u } else { period - u }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_path_is_flown_back_and_forth() {
+        assert_eq!(ping_pong(3.0, 10.0), 3.0);
+        assert_eq!(ping_pong(13.0, 10.0), 7.0);
+        assert_eq!(ping_pong(23.0, 10.0), 3.0);
+        assert_eq!(ping_pong(5.0, 0.0), 0.0, "a path of one keyframe");
+        assert_eq!(ping_pong(f64::NAN, 10.0), 0.0);
+    }
+}
