@@ -17,7 +17,7 @@ use farfield_tools::loadtest::{LoadReport, SecondRow};
 use crate::serve_dir;
 use crate::streaming::scenes;
 
-fn cli(args: &[&str]) -> anyhow::Result<()> {
+pub(crate) fn cli(args: &[&str]) -> anyhow::Result<()> {
     run(Cli::try_parse_from(
         std::iter::once("farfield").chain(args.iter().copied()),
     )?)
