@@ -57,7 +57,7 @@ fn a_scene_over_the_memory_limit_serves_load_clients_with_no_errors() {
         "--clients",
         "16",
         "--duration",
-        "6",
+        "8",
         "--ramp",
         "1",
         "--size",
