@@ -319,6 +319,10 @@ pub struct LoadtestArgs {
     /// The server's access token.
     #[arg(long, value_name = "TOKEN")]
     pub token: Option<String>,
+    /// Run the clients as a demo session of this name: client 0 presents
+    /// (flies the path), the others follow; their lag is measured.
+    #[arg(long, value_name = "NAME")]
+    pub session: Option<String>,
     /// Print the summary as JSON.
     #[arg(long)]
     pub json: bool,
@@ -404,6 +408,16 @@ pub struct RenderArgs {
     /// extrapolating the viewer's motion.
     #[arg(long, requires = "path")]
     pub known_path: bool,
+    /// Join this demo session of the server (see --present, --follow).
+    #[arg(long, value_name = "NAME", requires = "role", conflicts_with = "path")]
+    pub session: Option<String>,
+    /// Present: show this render's camera, threshold and kernel to the
+    /// session's followers (the session is made if it does not exist).
+    #[arg(long, group = "role", requires = "session")]
+    pub present: bool,
+    /// Follow: render the session presenter's view, with its threshold and kernel.
+    #[arg(long, group = "role", requires = "session")]
+    pub follow: bool,
     /// Stop when refined (default), after N frames, or after T milliseconds.
     #[arg(long, value_parser = ["refined"], conflicts_with_all = ["frames", "ms"])]
     pub until: Option<String>,

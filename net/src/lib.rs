@@ -32,7 +32,8 @@ pub mod websocket;
 mod tests;
 
 pub use session::{
-    LATENCY_SAMPLES, MAX_PAGE_FAILURES, Session, SessionError, SessionEvent, SessionOptions,
+    DemoEvent, LATENCY_SAMPLES, MAX_PAGE_FAILURES, Session, SessionError, SessionEvent,
+    SessionOptions,
 };
 pub use stats::{FailedPage, NetStats};
 pub use transport::{Closing, Transport, TransportEvent};

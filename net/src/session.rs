@@ -24,7 +24,7 @@ use farfield_protocol::FormatError;
 use farfield_protocol::codec::{self, CodecError};
 use farfield_protocol::file::FileHeader;
 use farfield_protocol::messages::{
-    ClientMessage, FrameKind, PROTOCOL_VERSION, PageWish, ServerMessage,
+    ClientMessage, FrameKind, PROTOCOL_VERSION, PageWish, ServerMessage, SessionState, SharedView,
 };
 use farfield_protocol::page::claimed_index;
 use farfield_traverse::WantedPage;
@@ -90,6 +90,27 @@ pub enum SessionEvent {
     /// A page's stored bytes, unverified: the owner checks them and calls
     /// [`Session::page_rejected`] when they fail. Already acknowledged.
     Page { index: u32, bytes: Bytes },
+    /// News of the demo session this connection is in.
+    Demo(DemoEvent),
+}
+
+/// What a demo session tells its members.
+#[derive(Debug, Clone, PartialEq)]
+pub enum DemoEvent {
+    /// Who is in it now.
+    State(SessionState),
+    /// The presenter's latest view.
+    View { seq: u64, view: SharedView },
+    /// It closed, or refused this client, and why; the client is in no
+    /// session now.
+    Closed { session: String, reason: String },
+}
+
+/// The demo session a session is to be in, joined again on every connection.
+#[derive(Debug, Clone, PartialEq)]
+struct DemoSeat {
+    name: String,
+    present: bool,
 }
 
 /// Why a session ended. It does not recover: the owner stops.
@@ -156,6 +177,8 @@ pub struct Session<T: Transport> {
     latencies: VecDeque<Duration>,
     /// Per page that failed: how often, and the last reason.
     failures: HashMap<u32, (u32, String)>,
+    /// The demo session to be in, if any.
+    demo: Option<DemoSeat>,
     /// The last error about the scene itself (a page, a server message), which
     /// still stands after a reconnect; `stats.last_error` goes back to it
     /// once a lost connection is back.
@@ -179,6 +202,7 @@ impl<T: Transport> Session<T> {
             header: None,
             requested: HashMap::new(),
             latencies: VecDeque::new(),
+            demo: None,
             failures: HashMap::new(),
             last_scene_error: None,
             stats: NetStats::default(),
@@ -338,6 +362,18 @@ impl<T: Transport> Session<T> {
                         return Ok(Err(SessionError::Server(message)));
                     }
                 }
+                ServerMessage::SessionState { state } => {
+                    out.push(SessionEvent::Demo(DemoEvent::State(state)));
+                }
+                ServerMessage::View { seq, view } => {
+                    out.push(SessionEvent::Demo(DemoEvent::View { seq, view }));
+                }
+                ServerMessage::SessionClosed { session, reason } => {
+                    if self.demo.as_ref().is_some_and(|d| d.name == session) {
+                        self.demo = None;
+                    }
+                    out.push(SessionEvent::Demo(DemoEvent::Closed { session, reason }));
+                }
                 ServerMessage::PageUnavailable { page, reason } => {
                     tracing::warn!("giving up page {page}: {reason}");
                     self.stats.pages_unavailable += 1;
@@ -365,6 +401,13 @@ impl<T: Transport> Session<T> {
         }
         self.link = Link::Open { header: true };
         self.requested.clear();
+        // The demo session is the connection's: join it again on a new one.
+        if let Some(seat) = self.demo.clone() {
+            self.send(&ClientMessage::Join {
+                session: seat.name,
+                present: seat.present,
+            });
+        }
         // Connected again: what went wrong with the connection is over.
         self.stats.last_error = self.last_scene_error.clone();
         Ok(())
@@ -489,6 +532,62 @@ impl<T: Transport> Session<T> {
                 );
             }
             self.send(&ClientMessage::Request { pages: new });
+        }
+    }
+
+    /// Joins demo session `name` as its presenter or a follower, now if
+    /// connected, else once connected; and again after every reconnect.
+    /// The answer comes as [`SessionEvent::Demo`].
+    pub fn join_demo(&mut self, name: &str, present: bool) {
+        self.demo = Some(DemoSeat {
+            name: name.to_owned(),
+            present,
+        });
+        if self.is_connected() {
+            self.send(&ClientMessage::Join {
+                session: name.to_owned(),
+                present,
+            });
+        }
+    }
+
+    /// Leaves the demo session (pages keep coming as before).
+    pub fn leave_demo(&mut self) {
+        if self.demo.take().is_some() && self.is_connected() {
+            self.send(&ClientMessage::Leave);
+        }
+    }
+
+    /// The demo session this session is in (or is joining), if any.
+    pub fn demo(&self) -> Option<&str> {
+        self.demo.as_ref().map(|d| d.name.as_str())
+    }
+
+    /// Shows `view` to the demo session's followers (the server refuses
+    /// it from anyone but the presenter). Not sent while disconnected:
+    /// the next view will be.
+    pub fn show_view(&mut self, view: SharedView) {
+        if self.demo.is_some() && self.is_connected() {
+            self.send(&ClientMessage::View { view });
+        }
+    }
+
+    /// Gives the presenter's seat to member `to`; from now on this client
+    /// follows (and joins as a follower after a reconnect).
+    pub fn hand_over(&mut self, to: u64) {
+        if let Some(seat) = self.demo.as_mut()
+            && self.link == (Link::Open { header: true })
+        {
+            seat.present = false;
+            self.send(&ClientMessage::HandOver { to });
+        }
+    }
+
+    /// Records that this client was handed the presenter's seat, so a
+    /// reconnect joins as presenter.
+    pub fn took_over(&mut self) {
+        if let Some(seat) = self.demo.as_mut() {
+            seat.present = true;
         }
     }
 

@@ -25,11 +25,24 @@
 //!    the server cannot send (it fails its checksum on the server's disk)
 //!    is answered with [`ServerMessage::PageUnavailable`] instead, so the
 //!    client stops waiting for it.
+//!
+//! Demo sessions ride on the same connection: a client joins a named
+//! session of its scene ([`ClientMessage::Join`]) as its presenter or a
+//! follower. The presenter publishes its view ([`ClientMessage::View`]);
+//! the server hands the latest one to every follower
+//! ([`ServerMessage::View`], coalesced: a follower behind gets only the
+//! newest) and tells every member who is in it
+//! ([`ServerMessage::SessionState`]) whenever that changes. Each member
+//! still asks for its own pages; they come from the server's shared cache,
+//! which the presenter's requests filled. The presenter may hand control
+//! to a follower ([`ClientMessage::HandOver`]); one that leaves keeps its
+//! seat for a grace period, after which the session closes
+//! ([`ServerMessage::SessionClosed`]).
 
 use serde::{Deserialize, Serialize};
 
 /// Bumped whenever a message changes shape.
-pub const PROTOCOL_VERSION: u32 = 2;
+pub const PROTOCOL_VERSION: u32 = 3;
 
 /// The first byte of every binary frame.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -63,6 +76,46 @@ pub enum ClientMessage {
     /// Every page that arrives is acknowledged, even one that failed its
     /// checksum, before it is asked for again.
     Received { pages: Vec<u32> },
+    /// Joins the demo session `session` of this connection's scene, as its
+    /// presenter (made if it does not exist; refused if someone else
+    /// presents) or as a follower (refused if it does not exist). A
+    /// connection is in at most one session: joining another leaves the first.
+    Join { session: String, present: bool },
+    /// The presenter's view, handed to the followers; ignored (with a
+    /// non-fatal error) from anyone else.
+    View { view: SharedView },
+    /// The presenter gives control to member `to`, who becomes the
+    /// presenter; the giver follows.
+    HandOver { to: u64 },
+    /// Leaves the session (the connection stays, and its pages).
+    Leave,
+}
+
+/// What a presenter shows: the camera (f64: it may sit far from the
+/// origin) and the options a viewer draws with, as key and value (the
+/// threshold, the kernel, a kind's options), so followers draw the same.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SharedView {
+    pub eye: [f64; 3],
+    pub target: [f64; 3],
+    pub up: [f64; 3],
+    pub fov_y_deg: f64,
+    pub options: Vec<(String, String)>,
+}
+
+/// Who is in a demo session, as one member is told.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SessionState {
+    pub session: String,
+    /// This member's id (what [`ClientMessage::HandOver`] names).
+    pub you: u64,
+    /// The presenter's id; it may be away (see `presenter_connected`).
+    pub presenter: Option<u64>,
+    pub presenter_connected: bool,
+    /// Members following now, ids ascending.
+    pub followers: Vec<u64>,
+    /// Seconds left before the session closes, while its presenter is away.
+    pub closes_in_s: Option<f64>,
 }
 
 /// One wanted page.
@@ -86,4 +139,12 @@ pub enum ServerMessage {
     /// client draws that part of the tree from coarser pages and stops
     /// waiting for it.
     PageUnavailable { page: u32, reason: String },
+    /// Who is in this connection's demo session (after a join, and
+    /// whenever it changes).
+    SessionState { state: SessionState },
+    /// The presenter's latest view (`seq` counts the presenter's views).
+    View { seq: u64, view: SharedView },
+    /// The demo session ended (its presenter did not come back in time),
+    /// or this connection was refused one; it is in none now.
+    SessionClosed { session: String, reason: String },
 }

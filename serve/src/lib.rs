@@ -25,6 +25,7 @@ pub mod access;
 mod admission;
 pub mod cache;
 pub mod catalog;
+pub mod demo;
 pub mod limits;
 mod listen;
 pub mod metrics;
@@ -151,6 +152,8 @@ pub(crate) struct AppState {
     pub session_ended: Notify,
     /// The browser viewer's files, if found.
     pub web_dir: Option<PathBuf>,
+    /// Demo sessions: presenters and their followers.
+    pub demo: Arc<demo::DemoSessions>,
 }
 
 /// A server running in the background of the current tokio runtime.
@@ -226,6 +229,7 @@ pub async fn start(config: ServerConfig) -> Result<RunningServer, ServeError> {
         shutdown: shutdown_rx.clone(),
         session_ended: Notify::new(),
         web_dir,
+        demo: Arc::new(demo::DemoSessions::new(&limits)),
     });
     let listener = tokio::net::TcpListener::bind(listen)
         .await
@@ -324,7 +328,14 @@ impl RunningServer {
 
     /// The counters now, as `GET /metrics` renders them.
     pub fn metrics_text(&self) -> String {
-        self.state.metrics.render()
+        let mut text = self.state.metrics.render();
+        self.state.demo.render_metrics(&mut text);
+        text
+    }
+
+    /// The demo sessions now, as `GET /sessions` lists them.
+    pub fn sessions(&self) -> Vec<demo::SessionSummary> {
+        self.state.demo.list()
     }
 
     /// Names of the scenes being served.

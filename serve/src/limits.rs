@@ -48,6 +48,11 @@ pub struct Limits {
     /// Acknowledgements of pages in flight are not counted: they answer
     /// the server's own sending, at its rate.
     pub max_messages_per_second: u32,
+    /// How long a demo session whose presenter left waits for one to come
+    /// back (anyone who joins as presenter) before it closes.
+    pub session_grace: Duration,
+    /// Demo sessions open at once; past it a new one is refused.
+    pub max_sessions: usize,
 }
 
 impl Default for Limits {
@@ -59,6 +64,8 @@ impl Default for Limits {
             hello_timeout: Duration::from_secs(10),
             idle_timeout: Duration::from_secs(60),
             max_messages_per_second: 1000,
+            session_grace: Duration::from_secs(30),
+            max_sessions: 256,
         }
     }
 }
@@ -70,6 +77,7 @@ impl Limits {
         self.max_connections = self.max_connections.max(1);
         self.max_connections_per_address = self.max_connections_per_address.max(1);
         self.max_messages_per_second = self.max_messages_per_second.max(1);
+        self.max_sessions = self.max_sessions.max(1);
         for t in [
             &mut self.header_timeout,
             &mut self.hello_timeout,

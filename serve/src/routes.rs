@@ -38,6 +38,7 @@ pub(crate) fn router(state: Arc<AppState>) -> Router {
         .route("/healthz", get(healthz))
         .route("/metrics", get(metrics))
         .route("/scenes", get(list))
+        .route("/sessions", get(sessions))
         .route("/scenes/{name}", get(one))
         .route("/scenes/{name}/stream", get(stream))
         .fallback(fallback)
@@ -100,11 +101,26 @@ async fn healthz() -> &'static str {
 }
 
 async fn metrics(State(app): State<Arc<AppState>>) -> Response {
-    (
-        [(header::CONTENT_TYPE, "text/plain; version=0.0.4")],
-        app.metrics.render(),
+    let mut text = app.metrics.render();
+    app.demo.render_metrics(&mut text);
+    ([(header::CONTENT_TYPE, "text/plain; version=0.0.4")], text).into_response()
+}
+
+/// The demo sessions of the scenes the request's token covers.
+async fn sessions(
+    State(app): State<Arc<AppState>>,
+    Extension(grant): Extension<Grant>,
+) -> Json<Value> {
+    Json(
+        serde_json::to_value(
+            app.demo
+                .list()
+                .into_iter()
+                .filter(|s| grant.allows(&s.scene))
+                .collect::<Vec<_>>(),
+        )
+        .unwrap_or(Value::Null),
     )
-        .into_response()
 }
 
 async fn list(State(app): State<Arc<AppState>>, Extension(grant): Extension<Grant>) -> Json<Value> {
@@ -162,5 +178,5 @@ async fn stream(
 }
 
 async fn fallback() -> Response {
-    not_found("no such endpoint (try /, /scenes, /healthz or /metrics)".into())
+    not_found("no such endpoint (try /, /scenes, /sessions, /healthz or /metrics)".into())
 }

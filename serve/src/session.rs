@@ -28,6 +28,7 @@ use tokio::sync::{Notify, watch};
 
 use super::AppState;
 use super::catalog::ServedScene;
+use super::demo::{DemoSessions, Mailbox, Seat};
 use super::limits::{Limit, RateLimiter};
 use super::metrics::Metrics;
 use super::schedule::{PAGE_ZERO_PRIORITY, Schedule};
@@ -93,7 +94,12 @@ impl Drop for Connected<'_> {
 #[derive(Debug)]
 struct Shared {
     state: Mutex<State>,
-    wake: Notify,
+    /// Wakes the writer: the reader applied a message, or a demo session
+    /// posted into `mailbox`.
+    wake: Arc<Notify>,
+    mailbox: Arc<Mailbox>,
+    /// This connection's id as a demo-session member.
+    member: u64,
 }
 
 #[derive(Debug)]
@@ -107,6 +113,8 @@ struct State {
     /// Set by the reader when the session must end.
     ending: Option<End>,
     stats: Stats,
+    /// The demo session this connection is in.
+    seat: Option<Seat>,
 }
 
 #[derive(Debug, Default, Clone, Copy)]
@@ -283,6 +291,7 @@ pub(crate) async fn run(
         Bytes::from(encode_header_frame(header)),
     ]);
     let first_bytes: usize = outbox.iter().map(Bytes::len).sum();
+    let wake = Arc::new(Notify::new());
     let shared = Shared {
         state: Mutex::new(State {
             schedule: Schedule::new(window, allow_push, scene.page_count()),
@@ -291,8 +300,11 @@ pub(crate) async fn run(
             outbox_limit: first_bytes + MAX_OUTBOX_BYTES,
             ending: None,
             stats: Stats::default(),
+            seat: None,
         }),
-        wake: Notify::new(),
+        mailbox: Arc::new(Mailbox::new(wake.clone())),
+        wake,
+        member: app.demo.member_id(),
     };
     // Page 0 goes ahead of anything the client can ask for.
     if scene.page_count() > 0 {
@@ -320,7 +332,10 @@ pub(crate) async fn run(
         }
     };
 
-    let state = shared.lock();
+    let mut state = shared.lock();
+    if let Some(seat) = state.seat.take() {
+        DemoSessions::leave(&app.demo, &seat.name, shared.member);
+    }
     let left = state.schedule.queued() as i64;
     app.metrics.queue_depth.fetch_sub(left, Ordering::Relaxed);
     let s = state.stats;
@@ -403,6 +418,10 @@ fn message_name(m: &ClientMessage) -> &'static str {
         ClientMessage::Request { .. } => "Request",
         ClientMessage::Cancel { .. } => "Cancel",
         ClientMessage::Received { .. } => "Received",
+        ClientMessage::Join { .. } => "Join",
+        ClientMessage::View { .. } => "View",
+        ClientMessage::HandOver { .. } => "HandOver",
+        ClientMessage::Leave => "Leave",
     }
 }
 
@@ -615,8 +634,53 @@ fn apply(
                 return Ok(Applied::Acknowledged);
             }
         }
+        ClientMessage::Join { session, present } => {
+            let mut st = shared.lock();
+            if let Some(seat) = st.seat.take() {
+                DemoSessions::leave(&app.demo, &seat.name, shared.member);
+            }
+            match app.demo.join(
+                &session,
+                &scene.name,
+                present,
+                shared.member,
+                &shared.mailbox,
+            ) {
+                Ok(seat) => {
+                    tracing::info!(scene = %scene.name, session = %seat.name, present, member = shared.member, "joined a demo session");
+                    st.seat = Some(seat);
+                }
+                Err(reason) => {
+                    st.queue_control(&ServerMessage::SessionClosed { session, reason })?
+                }
+            }
+        }
+        ClientMessage::View { view } => with_seat(&mut shared.lock(), |seat| {
+            app.demo.view(&seat.name, shared.member, view)
+        })?,
+        ClientMessage::HandOver { to } => with_seat(&mut shared.lock(), |seat| {
+            app.demo.hand_over(&seat.name, shared.member, to)
+        })?,
+        ClientMessage::Leave => {
+            if let Some(seat) = shared.lock().seat.take() {
+                DemoSessions::leave(&app.demo, &seat.name, shared.member);
+            }
+        }
     }
     Ok(Applied::Counted)
+}
+
+/// Does `f` with the connection's demo seat; why not (no seat, or what
+/// `f` says) is a non-fatal error reply.
+fn with_seat(st: &mut State, f: impl FnOnce(&Seat) -> Result<(), String>) -> Result<(), End> {
+    let result = match &st.seat {
+        Some(seat) => f(seat),
+        None => Err("not in a demo session".into()),
+    };
+    match result {
+        Ok(()) => Ok(()),
+        Err(e) => st.queue_control(&error(e, false)),
+    }
 }
 
 /// What the writer does next.
@@ -639,6 +703,11 @@ fn next_action(shared: &Shared, scene: &ServedScene, shutting_down: bool) -> Act
         return Action::End(retired(scene));
     }
     if let Some(frame) = st.next_control() {
+        return Action::Send(frame);
+    }
+    // Demo-session news goes before pages: a follower's view must not
+    // wait behind the pages of the last one.
+    if let Some(frame) = shared.mailbox.take() {
         return Action::Send(frame);
     }
     match st.schedule.next(|p| scene.page_len(p).unwrap_or(0)) {
@@ -717,6 +786,9 @@ async fn write_loop(
                         let mut st = shared.lock();
                         st.stats.pages += 1;
                         st.stats.bytes += page_bytes;
+                        if let Some(seat) = &st.seat {
+                            seat.bytes.fetch_add(page_bytes, Ordering::Relaxed);
+                        }
                         if next.pushed {
                             st.stats.pushed += 1;
                         } else {

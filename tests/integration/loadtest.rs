@@ -216,3 +216,64 @@ fn loads_out_of_bounds_are_refused_before_anything_connects() {
     assert!(format!("{e:#}").contains("--ramp"), "{e:#}");
     assert!(!out.exists(), "nothing written for a refused load");
 }
+
+#[test]
+fn a_load_as_a_demo_session_measures_the_followers_lag() {
+    let (dir, _) = scenes("loadtest-session");
+    let (rt, server, url) = serve_dir(&dir);
+    let out = dir.join("run");
+    cli(&[
+        "loadtest",
+        "--server",
+        &url,
+        "--scene",
+        "island",
+        "--clients",
+        "4",
+        "--duration",
+        "4",
+        "--size",
+        "320x240",
+        "--session",
+        "load",
+        "--out",
+        out.to_str().unwrap(),
+    ])
+    .expect("loadtest");
+    rt.block_on(server.shutdown()).expect("shutdown");
+    let r = summary(&out);
+    assert_eq!(r.errors, 0, "{r:?}");
+    assert_eq!(r.session.as_deref(), Some("load"));
+    assert!(r.follower_views >= 3, "each follower saw views: {r:?}");
+    let (p50, p95) = (
+        r.follower_lag_p50_ms.expect("lag"),
+        r.follower_lag_p95_ms.expect("lag"),
+    );
+    assert!(0.0 < p50 && p50 <= p95, "{r:?}");
+    assert!(r.server_disk_reads_per_page_served.is_some(), "{r:?}");
+    assert!(
+        seconds_of(&out)
+            .iter()
+            .any(|s| s.follower_lag_p95_ms.is_some())
+    );
+    // A session of one client, or with a bad name, is refused.
+    for (clients, name) in [("1", "load"), ("2", "bad name")] {
+        let e = cli(&[
+            "loadtest",
+            "--server",
+            &url,
+            "--scene",
+            "island",
+            "--clients",
+            clients,
+            "--duration",
+            "1",
+            "--session",
+            name,
+            "--out",
+            out.to_str().unwrap(),
+        ])
+        .expect_err("refused");
+        assert!(format!("{e:#}").contains("--session"), "{e:#}");
+    }
+}

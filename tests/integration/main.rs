@@ -9,6 +9,7 @@ mod cgroup;
 mod crowd;
 mod cubes;
 mod degenerate;
+mod demo_sessions;
 mod extremes;
 mod holes;
 mod impostor_prefetch;

@@ -526,6 +526,7 @@ fn sessions_driven_as_tasks_fetch_every_page() {
                                 let h = hierarchy.as_mut().expect("the header comes first");
                                 h.insert_page(index, &bytes).expect("a verified page");
                             }
+                            SessionEvent::Demo(e) => panic!("not in a demo session: {e:?}"),
                         }
                     }
                     let Some(h) = &hierarchy else { return true };

@@ -17,6 +17,7 @@
 
 pub mod budget;
 pub mod camera_spec;
+pub mod demo_link;
 pub mod flythrough;
 pub mod frame_loop;
 pub mod path;

@@ -13,6 +13,7 @@ use web_time::Instant;
 
 use crate::budget::BudgetSpec;
 use crate::camera_spec::CameraSpec;
+use crate::demo_link::DemoLink;
 use crate::frame_loop::{Settle, Until};
 use crate::report::RenderReport;
 use crate::viewer::Viewer;
@@ -56,6 +57,14 @@ pub struct Rendered {
     pub frames: Vec<Vec<u8>>,
 }
 
+/// A render's part in a demo session (`render --session NAME --present`
+/// or `--follow`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct DemoRole {
+    pub session: String,
+    pub present: bool,
+}
+
 /// Runs a render job with an already initialised renderer (so its start-up
 /// is not counted in time to first image).
 pub fn run(
@@ -63,22 +72,40 @@ pub fn run(
     renderer: &mut Renderer,
     keep_frames: bool,
 ) -> anyhow::Result<Rendered> {
+    run_with(job, renderer, keep_frames, None)
+}
+
+/// [`run`], in a demo session when `demo` says so: a presenter shows the
+/// job's camera (and threshold and kernel) to the followers, then renders
+/// it; a follower waits for the presenter's view and renders that, with
+/// the presenter's threshold and kernel.
+pub fn run_with(
+    job: &RenderJob,
+    renderer: &mut Renderer,
+    keep_frames: bool,
+    demo: Option<&DemoRole>,
+) -> anyhow::Result<Rendered> {
     renderer.resize(job.width, job.height);
     let started = Instant::now();
     let mut viewer = open_viewer(job)?;
+    let (width, height) = (job.width, job.height);
+    let mut job = job.clone();
+    let fixed = match demo {
+        Some(role) => Some(join_demo(&mut viewer, &mut job, role, started)?),
+        None => None,
+    };
     let style = SplatStyle {
         kernel: job.kernel,
         coverage: job.coverage,
         ..SplatStyle::default()
     };
     let camera = job.camera;
-    let (width, height) = (job.width, job.height);
     let mut settle = Settle::new(job.threshold_px, job.until, started, job.timeout);
     settle.keep_frames = keep_frames;
     job.budget.apply(&mut settle.cut);
     settle.cut.final_threshold = Some(job.threshold_px);
     settle.run(&mut viewer, renderer, &style, &|h| {
-        camera.resolve(h, width, height)
+        fixed.unwrap_or_else(|| camera.resolve(h, width, height))
     })?;
     let mut report = settle.report(&viewer, renderer);
     report.out = job.out.clone();
@@ -100,6 +127,72 @@ pub fn run(
         rgba: std::mem::take(&mut settle.rgba),
         frames: std::mem::take(&mut settle.frames),
     })
+}
+
+/// Joins the demo session; a presenter shows the job's view, a follower
+/// takes the presenter's (camera, threshold, kernel into `job`). Returns
+/// the camera to render.
+fn join_demo(
+    viewer: &mut Viewer,
+    job: &mut RenderJob,
+    role: &DemoRole,
+    started: Instant,
+) -> anyhow::Result<farfield_protocol::camera::Camera> {
+    let mut link = DemoLink::join(viewer, &role.session, role.present)
+        .context("a demo session needs a server (--server), not a file")?;
+    loop {
+        anyhow::ensure!(
+            started.elapsed() < job.timeout,
+            "{}",
+            viewer.with_last_error(format!(
+                "demo session {:?}: no {} after {:.1} s",
+                role.session,
+                if role.present {
+                    "presenter's seat"
+                } else {
+                    "view from its presenter"
+                },
+                started.elapsed().as_secs_f64()
+            ))
+        );
+        viewer.pump(Duration::from_millis(20))?;
+        link.update(viewer);
+        if let Some(reason) = &link.closed {
+            bail!("demo session {:?}: {reason}", role.session);
+        }
+        if role.present {
+            if let (true, Some(header)) = (link.is_presenting(), viewer.header().cloned()) {
+                let camera = job.camera.resolve(&header, job.width, job.height);
+                let kernel = match job.kernel {
+                    Kernel::Square => "square",
+                    Kernel::Round => "round",
+                };
+                let options = vec![
+                    ("threshold".to_owned(), job.threshold_px.to_string()),
+                    ("kernel".to_owned(), kernel.to_owned()),
+                ];
+                link.show(viewer, &camera, options);
+                return Ok(camera);
+            }
+        } else if let Some(camera) = link.camera(job.width, job.height) {
+            for (key, value) in link.options().unwrap_or_default() {
+                match (key.as_str(), value.as_str()) {
+                    ("threshold", v) => {
+                        if let Ok(t) = v.parse::<f64>()
+                            && t.is_finite()
+                            && t > 0.0
+                        {
+                            job.threshold_px = t;
+                        }
+                    }
+                    ("kernel", "square") => job.kernel = Kernel::Square,
+                    ("kernel", "round") => job.kernel = Kernel::Round,
+                    _ => {}
+                }
+            }
+            return Ok(camera);
+        }
+    }
 }
 
 /// The viewer a job's source names: a file read whole, or a session with

@@ -17,7 +17,8 @@ use std::time::Duration;
 
 use anyhow::Context;
 use farfield_net::{
-    FailedPage, NetStats, Session, SessionEvent, SessionOptions, Transport, stream_url, with_token,
+    DemoEvent, FailedPage, NetStats, Session, SessionEvent, SessionOptions, Transport, stream_url,
+    with_token,
 };
 use farfield_protocol::file::FileHeader;
 use farfield_protocol::hierarchy::Hierarchy;
@@ -44,9 +45,15 @@ pub struct Viewer {
     frame_bytes: u64,
     /// Events taken from the session and not yet applied (see [`Viewer::pump_for`]).
     pending: VecDeque<SessionEvent>,
+    /// Demo-session news not yet taken ([`Viewer::take_demo_events`]).
+    demo_events: VecDeque<DemoEvent>,
     /// A file's viewer has no session; its counters stay zero.
     no_stats: NetStats,
 }
+
+/// Most demo events a viewer keeps for an owner that does not take them
+/// (the newest; a view supersedes the ones before it anyway).
+const MAX_DEMO_EVENTS: usize = 64;
 
 impl Viewer {
     /// Every page of a local file resident, no server involved.
@@ -104,6 +111,7 @@ impl Viewer {
             cache_bytes,
             frame_bytes: 0,
             pending: VecDeque::new(),
+            demo_events: VecDeque::new(),
             no_stats: NetStats::default(),
         }
     }
@@ -200,6 +208,7 @@ impl Viewer {
             recency,
             cache_bytes,
             pending,
+            demo_events,
             ..
         } = self
         else {
@@ -227,6 +236,12 @@ impl Viewer {
                         }
                         Err(e) => session.page_rejected(index, &e),
                     }
+                }
+                SessionEvent::Demo(event) => {
+                    if demo_events.len() >= MAX_DEMO_EVENTS {
+                        demo_events.pop_front();
+                    }
+                    demo_events.push_back(event);
                 }
             }
             if deadline.is_some_and(|d| Instant::now() >= d) {
@@ -305,6 +320,17 @@ impl Viewer {
                 .map(|p| u64::from(p.length))
                 .sum()
         });
+    }
+
+    /// The demo-session news that arrived since the last call, oldest first.
+    pub fn take_demo_events(&mut self) -> Vec<DemoEvent> {
+        self.demo_events.drain(..).collect()
+    }
+
+    /// The session with the server (none for a file): for demo sessions,
+    /// [`Session::join_demo`] and the rest.
+    pub fn session_mut(&mut self) -> Option<&mut Session<Box<dyn Transport>>> {
+        self.session.as_mut()
     }
 
     /// Request-to-arrival times of the pages asked for since the last

@@ -187,6 +187,7 @@ pub fn loadtest(args: crate::cli::LoadtestArgs) -> anyhow::Result<()> {
         fps: args.fps,
         client_cache_bytes: args.client_cache_mib.max(1) << 20,
         token: args.token,
+        session: args.session,
         ..farfield_tools::loadtest::LoadJob::new(
             &args.server,
             &args.scene,

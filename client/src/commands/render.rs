@@ -11,7 +11,7 @@ use farfield_view::budget::BudgetSpec;
 use farfield_view::flythrough::{FlyJob, fly, write_csv};
 use farfield_view::frame_loop::Until;
 use farfield_view::path::CameraPath;
-use farfield_view::render_job::{RenderJob, open_viewer};
+use farfield_view::render_job::{DemoRole, RenderJob, open_viewer};
 use farfield_view::report::RenderReport;
 
 use crate::cli::RenderArgs;
@@ -77,7 +77,11 @@ pub fn run(args: RenderArgs) -> anyhow::Result<()> {
             args.json,
         );
     }
-    let rendered = farfield_view::render_job::run(&job, &mut renderer, false)?;
+    let demo = args.session.map(|session| DemoRole {
+        session,
+        present: args.present,
+    });
+    let rendered = farfield_view::render_job::run_with(&job, &mut renderer, false, demo.as_ref())?;
     let r = &rendered.report;
     if args.json {
         println!("{}", serde_json::to_string(r)?);

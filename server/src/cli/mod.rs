@@ -184,6 +184,13 @@ pub struct LimitArgs {
     /// Websocket messages (pings included) a session may send per second.
     #[arg(long, default_value_t = Limits::default().max_messages_per_second)]
     pub max_messages_per_second: u32,
+    /// Seconds a demo session whose presenter left waits for a presenter
+    /// before it closes.
+    #[arg(long, default_value_t = Limits::default().session_grace.as_secs_f64(), value_parser = seconds)]
+    pub session_grace: f64,
+    /// Demo sessions open at once.
+    #[arg(long, default_value_t = Limits::default().max_sessions)]
+    pub max_sessions: usize,
 }
 
 impl LimitArgs {
@@ -195,6 +202,8 @@ impl LimitArgs {
             hello_timeout: Duration::from_secs_f64(self.hello_timeout),
             idle_timeout: Duration::from_secs_f64(self.idle_timeout),
             max_messages_per_second: self.max_messages_per_second,
+            session_grace: Duration::from_secs_f64(self.session_grace),
+            max_sessions: self.max_sessions,
         }
         .sane()
     }

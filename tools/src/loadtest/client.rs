@@ -12,13 +12,15 @@
 //! looks; then flies its path back and forth, starting at its own phase
 //! so the clients do not all look at the same place.
 
-use std::sync::Arc;
+use std::collections::VecDeque;
 use std::sync::atomic::{AtomicBool, AtomicI64, Ordering};
+use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 use farfield_net::queue::QueueTransport;
 use farfield_net::websocket::drive_wire;
 use farfield_net::{NetStats, SessionOptions};
+use farfield_view::demo_link::DemoLink;
 use farfield_view::frame_loop::{LastCut, traverse_frame};
 use farfield_view::path::CameraPath;
 use farfield_view::viewer::Viewer;
@@ -37,6 +39,16 @@ pub struct Shared {
     /// Clients whose session is up now.
     pub connected: AtomicI64,
     pub started: Instant,
+    /// A demo presenter's latest views (the eye's bits) and when each
+    /// was shown, for the followers' lag.
+    pub shown: Mutex<VecDeque<([u64; 3], Instant)>>,
+}
+
+/// Views remembered for the followers' lag.
+const SHOWN_KEPT: usize = 1024;
+
+fn eye_bits(eye: [f64; 3]) -> [u64; 3] {
+    eye.map(f64::to_bits)
 }
 
 /// One client's figures, a row of `clients.csv`.
@@ -89,6 +101,10 @@ pub async fn run(index: usize, clients: usize, shared: Arc<Shared>) -> ClientRow
             job.client_cache_bytes,
         );
         client.seen = NetStats::default();
+        client.demo = job
+            .session
+            .as_deref()
+            .and_then(|name| DemoLink::join(&mut viewer, name, index == 0));
         let ended = drive_wire(&wire, || client.step(&mut viewer, &shared, &mut row)).await;
         client.set_connected(false, &shared);
         let Err(e) = ended else { break };
@@ -124,6 +140,12 @@ struct Client {
     /// The session's counters at the last step.
     seen: NetStats,
     connected: bool,
+    /// In a demo session: client 0 presents, the others follow.
+    demo: Option<DemoLink>,
+    /// The presenter's last view this follower saw.
+    last_seq: u64,
+    /// When a follower refused (its session not made yet) asks again.
+    rejoin_at: Option<Instant>,
 }
 
 impl Client {
@@ -137,6 +159,41 @@ impl Client {
             flying_since: None,
             seen: NetStats::default(),
             connected: false,
+            demo: None,
+            last_seq: 0,
+            rejoin_at: None,
+        }
+    }
+
+    /// Takes a demo session's news: a follower's lag for a new view, and
+    /// a refused follower's next try (the presenter may not have made the
+    /// session yet).
+    fn follow(&mut self, viewer: &mut Viewer, shared: &Shared, lags: &mut Vec<Duration>) {
+        let Some(link) = self.demo.as_mut() else {
+            return;
+        };
+        link.update(viewer);
+        if let Some((seq, view, arrived)) = &link.latest
+            && *seq != self.last_seq
+        {
+            self.last_seq = *seq;
+            let key = eye_bits(view.eye);
+            let shown = shared.shown.lock().unwrap_or_else(|e| e.into_inner());
+            if let Some((_, at)) = shown.iter().rev().find(|(k, _)| *k == key) {
+                lags.push(arrived.saturating_duration_since(*at));
+            }
+        }
+        if link.closed.is_some() {
+            let now = Instant::now();
+            match self.rejoin_at {
+                None => self.rejoin_at = Some(now + Duration::from_millis(200)),
+                Some(at) if now >= at => {
+                    self.rejoin_at = None;
+                    let name = link.name.clone();
+                    self.demo = DemoLink::join(viewer, &name, false);
+                }
+                Some(_) => {}
+            }
         }
     }
 
@@ -158,6 +215,8 @@ impl Client {
     ) -> anyhow::Result<bool> {
         viewer.pump(Duration::ZERO)?;
         self.set_connected(viewer.is_connected(), shared);
+        let mut lags = Vec::new();
+        self.follow(viewer, shared, &mut lags);
         let job = &shared.job;
         let now = Instant::now();
         if now >= self.next_frame {
@@ -176,6 +235,7 @@ impl Client {
             errors: (stats.disconnects - self.seen.disconnects)
                 + gave_up.saturating_sub(self.seen.pages_unavailable),
             reconnects: stats.reconnects - self.seen.reconnects,
+            lags,
         };
         self.seen = NetStats {
             pages_unavailable: gave_up,
@@ -220,7 +280,24 @@ impl Client {
                 shared.path.duration(),
             ),
         };
-        let camera = shared.path.camera_at(t, &header, job.width, job.height);
+        let own = shared.path.camera_at(t, &header, job.width, job.height);
+        let camera = match self.demo.as_mut() {
+            Some(link) if link.is_presenting() => {
+                link.show(viewer, &own, Vec::new());
+                let mut shown = shared.shown.lock().unwrap_or_else(|e| e.into_inner());
+                let key = eye_bits(own.eye.to_array());
+                if shown.back().is_none_or(|(k, _)| *k != key) {
+                    if shown.len() >= SHOWN_KEPT {
+                        shown.pop_front();
+                    }
+                    shown.push_back((key, Instant::now()));
+                }
+                own
+            }
+            // A follower draws the presenter's view once one came.
+            Some(link) => link.camera(job.width, job.height).unwrap_or(own),
+            None => own,
+        };
         traverse_frame(viewer, &camera, job.threshold_px, 1, &mut self.cut)?;
         let ms = since_start.as_secs_f64() * 1e3;
         if row.first_image_ms.is_none() && self.cut.drawn() > 0 {

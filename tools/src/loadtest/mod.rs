@@ -9,6 +9,11 @@
 //! `seconds.csv`, `clients.csv`, `loadtest.json` (the summary), plots and
 //! `index.html` ([`output`]).
 //!
+//! With `--session NAME` the clients are a demo session: client 0 presents
+//! (flies its path, showing each view), the others follow (draw the
+//! presenter's view as it comes); the followers' lag behind the presenter
+//! is measured here, on one clock.
+//!
 //! The load is bounded: at most [`MAX_CLIENTS`] clients for at most
 //! [`MAX_DURATION`], and every connection goes to the server given (its
 //! stream and its `/metrics`), nowhere else.
@@ -57,6 +62,8 @@ pub struct LoadJob {
     /// Each client's resident pages, in bytes.
     pub client_cache_bytes: usize,
     pub token: Option<String>,
+    /// A demo session: client 0 presents, the others follow.
+    pub session: Option<String>,
 }
 
 impl LoadJob {
@@ -82,6 +89,7 @@ impl LoadJob {
             fps: 10.0,
             client_cache_bytes: 64 << 20,
             token: None,
+            session: None,
         }
     }
 
@@ -113,6 +121,17 @@ impl LoadJob {
         );
         anyhow::ensure!(self.width > 0 && self.height > 0, "--size must not be 0");
         anyhow::ensure!(!self.scene.is_empty(), "--scene must not be empty");
+        if let Some(name) = &self.session {
+            anyhow::ensure!(
+                farfield_serve::demo::valid_name(name),
+                "--session: a session name is 1 to {} letters, digits, '-', '_' or '.'",
+                farfield_serve::demo::MAX_NAME_BYTES
+            );
+            anyhow::ensure!(
+                self.clients >= 2,
+                "--session needs at least 2 clients (a presenter and a follower)"
+            );
+        }
         Ok(())
     }
 
@@ -142,6 +161,8 @@ pub struct SecondRow {
     pub latency_max_ms: Option<f64>,
     pub errors: u64,
     pub reconnects: u64,
+    /// Demo followers' lag behind the presenter's view.
+    pub follower_lag_p95_ms: Option<f64>,
     pub server_resident_mib: Option<f64>,
     /// Of this second's page lookups, the share the cache answered.
     pub server_cache_hit_rate: Option<f64>,
@@ -171,6 +192,13 @@ pub struct LoadReport {
     pub latency_samples: u64,
     pub errors: u64,
     pub reconnects: u64,
+    pub session: Option<String>,
+    pub follower_lag_p50_ms: Option<f64>,
+    pub follower_lag_p95_ms: Option<f64>,
+    pub follower_lag_max_ms: Option<f64>,
+    pub follower_views: u64,
+    /// Pages the server read from disk per page it sent, over the run.
+    pub server_disk_reads_per_page_served: Option<f64>,
     pub clients_with_first_image: usize,
     pub first_image_p50_ms: Option<f64>,
     pub first_image_max_ms: Option<f64>,
@@ -202,10 +230,11 @@ pub fn run(job: &LoadJob) -> anyhow::Result<LoadReport> {
         stop: AtomicBool::new(false),
         connected: AtomicI64::new(0),
         started: Instant::now(),
+        shown: std::sync::Mutex::new(std::collections::VecDeque::new()),
     });
     let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
     let workers = start_clients(&shared, threads)?;
-    let (seconds, metrics_error) = watch(&shared);
+    let watched = watch(&shared);
     shared.stop.store(true, Ordering::Relaxed);
     let mut clients = Vec::with_capacity(job.clients);
     for w in workers {
@@ -215,8 +244,8 @@ pub fn run(job: &LoadJob) -> anyhow::Result<LoadReport> {
         );
     }
     clients.sort_by_key(|c| c.client);
-    let report = summarize(job, &shared, &seconds, &clients, metrics_error);
-    output::write_all(&job.out, &report, &seconds, &clients)?;
+    let report = summarize(job, &shared, &watched, &clients);
+    output::write_all(&job.out, &report, &watched.seconds, &clients)?;
     Ok(report)
 }
 
@@ -257,12 +286,13 @@ fn start_clients(
 }
 
 /// Cuts a row every second until the run's duration is over; samples the
-/// server's metrics for each. Returns the rows, and why the metrics could
-/// not be read when they never could.
-fn watch(shared: &Shared) -> (Vec<SecondRow>, Option<String>) {
+/// server's metrics for each. Returns the rows, why the metrics could not
+/// be read when they never could, and the disk reads per page served.
+fn watch(shared: &Shared) -> Watched {
     let job = &shared.job;
     let scraper = Scraper::new(&job.server, job.token.clone());
     let mut last = scraper.sample().ok();
+    let first = last;
     let (mut rows, mut error, mut any) = (Vec::new(), None, last.is_some());
     let seconds = job.duration.as_secs_f64().ceil() as u64;
     for s in 1..=seconds {
@@ -287,7 +317,24 @@ fn watch(shared: &Shared) -> (Vec<SecondRow>, Option<String>) {
             last = now;
         }
     }
-    (rows, if any { None } else { error })
+    let reads_per_page = (|| {
+        let (a, b) = (first?, last?);
+        let pages = b.pages_served? - a.pages_served?;
+        let reads = b.disk_reads? - a.disk_reads?;
+        (pages > 0.0).then(|| reads / pages)
+    })();
+    Watched {
+        seconds: rows,
+        metrics_error: if any { None } else { error },
+        reads_per_page,
+    }
+}
+
+/// What watching the run gave.
+struct Watched {
+    seconds: Vec<SecondRow>,
+    metrics_error: Option<String>,
+    reads_per_page: Option<f64>,
 }
 
 fn second_row(
@@ -321,6 +368,7 @@ fn second_row(
         latency_max_ms: i.latency_max_ms(),
         errors: i.errors,
         reconnects: i.reconnects,
+        follower_lag_p95_ms: i.lag_ms(0.95),
         server_resident_mib: gauge(|s| s.resident_bytes).map(|b| b / (1 << 20) as f64),
         server_cache_hit_rate: hit_rate,
         server_disk_reads: delta(|s| s.disk_reads),
@@ -341,10 +389,10 @@ fn quantile(values: &mut [f64], q: f64) -> Option<f64> {
 fn summarize(
     job: &LoadJob,
     shared: &Shared,
-    seconds: &[SecondRow],
+    watched: &Watched,
     clients: &[ClientRow],
-    metrics_error: Option<String>,
 ) -> LoadReport {
+    let seconds = &watched.seconds;
     let total = shared.recorder.total();
     let run_s = seconds.last().map_or(0.0, |r| r.t_s).max(1e-3);
     let mut first: Vec<f64> = clients.iter().filter_map(|c| c.first_image_ms).collect();
@@ -382,6 +430,12 @@ fn summarize(
         latency_samples: total.latency_us.len(),
         errors: total.errors,
         reconnects: total.reconnects,
+        session: job.session.clone(),
+        follower_lag_p50_ms: total.lag_ms(0.5),
+        follower_lag_p95_ms: total.lag_ms(0.95),
+        follower_lag_max_ms: (!total.lag_us.is_empty()).then(|| total.lag_us.max() as f64 / 1e3),
+        follower_views: total.lag_us.len(),
+        server_disk_reads_per_page_served: watched.reads_per_page,
         clients_with_first_image: first.len(),
         first_image_p50_ms: quantile(&mut first, 0.5),
         first_image_max_ms: first.iter().copied().reduce(f64::max),
@@ -394,7 +448,7 @@ fn summarize(
         server_cache_hit_rate: (!hits_reads.is_empty())
             .then(|| hits_reads.iter().sum::<f64>() / hits_reads.len() as f64),
         server_disk_reads: (!disk.is_empty()).then(|| disk.iter().sum()),
-        metrics_error,
+        metrics_error: watched.metrics_error.clone(),
         cpu: crate::bench::report::cpu_model(),
         cores: std::thread::available_parallelism().map_or(1, |n| n.get()),
     }
@@ -408,7 +462,7 @@ pub fn describe(r: &LoadReport) -> String {
          request latency ms: p50 {}, p95 {}, p99 {}, max {} ({} pages)\n\
          errors {}, reconnects {}\n\
          first image: {} of {} clients, p50 {} ms, max {} ms; refined: {} clients, p50 {} ms\n\
-         server: resident {}..{} MiB, cache hit rate {}, disk reads {}{}\n",
+         server: resident {}..{} MiB, cache hit rate {}, disk reads {} ({} a page served){}\n{}",
         r.clients,
         r.server,
         r.scene,
@@ -435,8 +489,18 @@ pub fn describe(r: &LoadReport) -> String {
             .map_or("-".into(), |h| format!("{:.1} %", h * 100.0)),
         r.server_disk_reads
             .map_or("-".into(), |d| format!("{d:.0}")),
+        r.server_disk_reads_per_page_served
+            .map_or("-".into(), |d| format!("{d:.3}")),
         r.metrics_error
             .as_ref()
             .map_or(String::new(), |e| format!(" (metrics not sampled: {e})")),
+        r.session.as_ref().map_or(String::new(), |s| format!(
+            "demo session {s}: 1 presenter, {} followers; follower lag ms p50 {}, p95 {}, max {} ({} views)\n",
+            r.clients - 1,
+            ms(r.follower_lag_p50_ms),
+            ms(r.follower_lag_p95_ms),
+            ms(r.follower_lag_max_ms),
+            r.follower_views
+        )),
     )
 }

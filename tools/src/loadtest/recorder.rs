@@ -24,11 +24,14 @@ pub struct Tick {
     pub errors: u64,
     /// Connections opened again after one was lost.
     pub reconnects: u64,
+    /// Demo followers: from the presenter showing a view to its arrival.
+    pub lags: Vec<Duration>,
 }
 
 impl Tick {
     fn is_empty(&self) -> bool {
         self.latencies.is_empty()
+            && self.lags.is_empty()
             && self.pages == 0
             && self.bytes == 0
             && self.errors == 0
@@ -40,6 +43,7 @@ impl Tick {
 #[derive(Debug, Clone)]
 pub struct Interval {
     pub latency_us: Histogram<u64>,
+    pub lag_us: Histogram<u64>,
     pub pages: u64,
     pub bytes: u64,
     pub errors: u64,
@@ -52,6 +56,8 @@ impl Interval {
             // Bounds that are valid by construction.
             latency_us: Histogram::new_with_bounds(1, MAX_LATENCY_US, 3)
                 .expect("valid histogram bounds"),
+            lag_us: Histogram::new_with_bounds(1, MAX_LATENCY_US, 3)
+                .expect("valid histogram bounds"),
             pages: 0,
             bytes: 0,
             errors: 0,
@@ -60,11 +66,8 @@ impl Interval {
     }
 
     fn add(&mut self, tick: &Tick) {
-        for l in &tick.latencies {
-            let us = u64::try_from(l.as_micros()).unwrap_or(u64::MAX);
-            self.latency_us
-                .saturating_record(us.clamp(1, MAX_LATENCY_US));
-        }
+        record(&mut self.latency_us, &tick.latencies);
+        record(&mut self.lag_us, &tick.lags);
         self.pages += tick.pages;
         self.bytes += tick.bytes;
         self.errors += tick.errors;
@@ -79,6 +82,18 @@ impl Interval {
 
     pub fn latency_max_ms(&self) -> Option<f64> {
         (!self.latency_us.is_empty()).then(|| self.latency_us.max() as f64 / 1e3)
+    }
+
+    /// A demo follower's lag at quantile `q`, in milliseconds.
+    pub fn lag_ms(&self, q: f64) -> Option<f64> {
+        (!self.lag_us.is_empty()).then(|| self.lag_us.value_at_quantile(q) as f64 / 1e3)
+    }
+}
+
+fn record(h: &mut Histogram<u64>, values: &[Duration]) {
+    for v in values {
+        let us = u64::try_from(v.as_micros()).unwrap_or(u64::MAX);
+        h.saturating_record(us.clamp(1, MAX_LATENCY_US));
     }
 }
 
@@ -117,6 +132,7 @@ impl Recorder {
         let mut inner = self.lock();
         let second = inner.0.clone();
         inner.0.latency_us.reset();
+        inner.0.lag_us.reset();
         (
             inner.0.pages,
             inner.0.bytes,
@@ -146,9 +162,11 @@ mod tests {
             bytes: 500,
             errors: 1,
             reconnects: 0,
+            lags: ms(&[20]),
         });
         let first = r.cut();
         assert_eq!((first.pages, first.bytes, first.errors), (5, 500, 1));
+        assert!((19.9..=20.1).contains(&first.lag_ms(0.95).unwrap()));
         let p50 = first.latency_ms(0.5).unwrap();
         assert!((2.9..=3.1).contains(&p50), "{p50}");
         assert!((99.0..=100.1).contains(&first.latency_max_ms().unwrap()));
@@ -161,6 +179,7 @@ mod tests {
         let second = r.cut();
         assert_eq!((second.pages, second.errors, second.reconnects), (1, 0, 2));
         assert!((9.9..=10.1).contains(&second.latency_ms(0.99).unwrap()));
+        assert!(second.lag_ms(0.5).is_none(), "cut with the second");
         assert!(r.cut().latency_ms(0.5).is_none(), "nothing came since");
         let total = r.total();
         assert_eq!((total.pages, total.errors, total.reconnects), (6, 1, 2));
