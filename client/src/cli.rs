@@ -211,6 +211,17 @@ pub struct ViewArgs {
     /// the frame times as `flight <JSON>`, and close.
     #[arg(long, value_name = "SECONDS")]
     pub flight: Option<f64>,
+    /// Join this demo session at start (see --present, --follow; the
+    /// panel can also make, join, leave and hand over sessions).
+    #[arg(long, value_name = "NAME", requires = "view_role")]
+    pub session: Option<String>,
+    /// Present: followers see this window's camera.
+    #[arg(long, group = "view_role", requires = "session")]
+    pub present: bool,
+    /// Follow the presenter (moving the camera looks around; "follow
+    /// again" in the panel returns).
+    #[arg(long, group = "view_role", requires = "session")]
+    pub follow: bool,
 }
 
 #[derive(Debug, clap::Args)]
@@ -534,6 +545,12 @@ fn view_job(args: ViewArgs) -> anyhow::Result<commands::view::ViewJob> {
         token: args.access.token,
         ca_cert: args.access.ca_cert,
         screenshot_when_refined: args.screenshot_when_refined,
+        demo: args
+            .session
+            .map(|session| farfield_view::render_job::DemoRole {
+                session,
+                present: args.present,
+            }),
         flight_seconds: args.flight,
     })
 }

@@ -117,14 +117,14 @@ fn followers_render_the_presenters_image_from_the_command_line() {
 }
 
 /// A headless client: a viewer, its demo link and its traversal.
-struct Member {
-    viewer: Viewer,
-    link: DemoLink,
+pub(crate) struct Member {
+    pub(crate) viewer: Viewer,
+    pub(crate) link: DemoLink,
     cut: LastCut,
 }
 
 impl Member {
-    fn join(url: &str, present: bool) -> Self {
+    pub(crate) fn join(url: &str, present: bool) -> Self {
         let mut viewer =
             Viewer::open_remote(url, "island", SessionOptions::default(), usize::MAX).unwrap();
         let link = DemoLink::join(&mut viewer, "demo", present).unwrap();
@@ -141,7 +141,7 @@ impl Member {
     }
 
     /// Pumps until `done` holds.
-    fn until(&mut self, what: &str, mut done: impl FnMut(&Self) -> bool) {
+    pub(crate) fn until(&mut self, what: &str, mut done: impl FnMut(&Self) -> bool) {
         let started = Instant::now();
         while !done(self) {
             assert!(started.elapsed() < WAIT, "waited in vain for {what}");
@@ -169,7 +169,7 @@ impl Member {
     }
 }
 
-fn orbit(azimuth: f64, member: &Member) -> Camera {
+pub(crate) fn orbit(azimuth: f64, member: &Member) -> Camera {
     CameraSpec::Orbit {
         azimuth_deg: azimuth,
         elevation_deg: 25.0,

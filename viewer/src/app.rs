@@ -16,9 +16,11 @@ use farfield_render::{Renderer, SplatStyle};
 use farfield_traverse::DrawList;
 use farfield_view::camera_spec::CameraSpec;
 use farfield_view::frame_loop::{LastCut, draw_frame};
+use farfield_view::render_job::DemoRole;
 use farfield_view::viewer::Viewer;
 use web_time::Instant;
 
+use crate::demo_panel::{Demo, DemoActions};
 use crate::flight::{Flight, FlightReport};
 use crate::input::read_input;
 use crate::panel::{self, Settings};
@@ -49,6 +51,8 @@ pub struct AppOptions {
     /// Fly the benchmark's path ([`crate::flight`]) for this many seconds
     /// once the scene is there, then report to [`Platform::flight_done`].
     pub flight_seconds: Option<f64>,
+    /// Join this demo session at start, presenting or following.
+    pub demo: Option<DemoRole>,
 }
 
 impl Default for AppOptions {
@@ -58,6 +62,7 @@ impl Default for AppOptions {
             settings: Settings::default(),
             show_panel: true,
             flight_seconds: None,
+            demo: None,
         }
     }
 }
@@ -121,6 +126,8 @@ pub struct ViewerApp {
     screenshots: Arc<Mutex<Vec<Arc<egui::ColorImage>>>>,
     /// The benchmark's flight, while it flies.
     flight: Option<Flight>,
+    /// The demo session this viewer presents or follows.
+    demo: Demo,
 }
 
 impl std::fmt::Debug for ViewerApp {
@@ -174,6 +181,7 @@ impl ViewerApp {
         let s = &options.settings;
         let refine = Refinement::new(s.threshold, s.target_frame_ms, s.node_budget);
         let flight = options.flight_seconds.map(Flight::new);
+        let demo = Demo::starting(options.demo.as_ref());
         let status = Status {
             adapter: renderer.adapter_description(),
             ..Status::default()
@@ -196,6 +204,7 @@ impl ViewerApp {
             gpu_error,
             screenshots: Arc::default(),
             flight,
+            demo,
         })
     }
 
@@ -256,6 +265,7 @@ impl ViewerApp {
             rig.reset();
         }
         rig.apply(&input, flying, rect.height() * ppp, dt);
+        self.demo.steer(rig, input != Default::default());
         let flying_script = self.flight.is_some();
         if let Some(flight) = self.flight.as_mut() {
             let next = flight.next(rig.shown(), dt);
@@ -275,6 +285,16 @@ impl ViewerApp {
         let moving = was_moving || input != Default::default() || flying_script;
         let camera = rig.shown().camera(width, height);
         let rest_spec = (!moving).then(|| rig.shown().spec());
+        let s = &self.options.settings;
+        let kernel = match s.kernel {
+            farfield_render::Kernel::Square => "square",
+            farfield_render::Kernel::Round => "round",
+        };
+        let shown_options = vec![
+            ("threshold".to_owned(), s.threshold.to_string()),
+            ("kernel".to_owned(), kernel.to_owned()),
+        ];
+        self.demo.present(&mut self.viewer, &camera, shown_options);
 
         let Some(renderer) = self.renderer.as_mut() else {
             return;
@@ -413,6 +433,7 @@ impl ViewerApp {
         if let Some(rig) = &self.rig {
             st.camera = Some(rig.shown().spec());
         }
+        st.demo = self.demo.summary();
     }
 }
 
@@ -423,12 +444,21 @@ impl eframe::App for ViewerApp {
         let dt = frame_s.min(0.25);
         self.last_frame = now;
         self.pump();
+        if let Some(role) = self.options.demo.take() {
+            let join = DemoActions {
+                join: Some(role),
+                ..DemoActions::default()
+            };
+            self.demo.act(&mut self.viewer, &join);
+        }
+        self.demo.update(&mut self.viewer);
         if ui.input(|i| i.key_pressed(egui::Key::Tab)) {
             self.show_panel = !self.show_panel;
         }
         if self.show_panel {
             let before = self.options.settings.clone();
-            let action = panel::show(ui, &self.status, &mut self.options.settings);
+            let action = panel::show(ui, &self.status, &mut self.options.settings, &mut self.demo);
+            self.demo.act(&mut self.viewer, &action.demo);
             let s = &self.options.settings;
             if *s != before {
                 self.refine = Refinement::new(s.threshold, s.target_frame_ms, s.node_budget);

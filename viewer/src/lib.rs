@@ -13,10 +13,13 @@
 //! - [`input`]: egui's pointer, wheel, touch and keys as the rig's input;
 //! - [`refine`]: the frame budget while moving, refinement at rest, progress;
 //! - [`panel`]: stats and settings; [`status`]: what a frame reports;
+//! - [`demo_panel`]: a demo session: present, follow (or look around and
+//!   follow again), hand over;
 //! - [`link`]: the camera in a URL fragment; [`pick`]: what is under the cursor;
 //! - [`flight`]: a scripted flight for benchmarks (frame times while orbiting).
 
 pub mod app;
+pub mod demo_panel;
 pub mod flight;
 pub mod input;
 pub mod link;

@@ -96,15 +96,21 @@ impl Settings {
 }
 
 /// What the panel's buttons asked for this frame.
-#[derive(Debug, Clone, Copy, Default)]
+#[derive(Debug, Clone, Default)]
 pub struct Actions {
     pub screenshot: bool,
     pub reset: bool,
     pub hide: bool,
+    pub demo: crate::demo_panel::DemoActions,
 }
 
 /// Shows the panel on the left of `ui`.
-pub fn show(ui: &mut egui::Ui, status: &Status, settings: &mut Settings) -> Actions {
+pub fn show(
+    ui: &mut egui::Ui,
+    status: &Status,
+    settings: &mut Settings,
+    demo: &mut crate::demo_panel::Demo,
+) -> Actions {
     let mut actions = Actions::default();
     egui::Panel::left("farfield panel")
         .resizable(false)
@@ -191,6 +197,8 @@ pub fn show(ui: &mut egui::Ui, status: &Status, settings: &mut Settings) -> Acti
                     .logarithmic(true)
                     .text("memory (MiB)"),
             );
+            ui.separator();
+            actions.demo = demo.panel(ui);
             ui.separator();
             ui.horizontal(|ui| {
                 actions.reset = ui.button("reset (R)").clicked();

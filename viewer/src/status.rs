@@ -57,6 +57,8 @@ pub struct Status {
     pub last_error: Option<String>,
     /// What stops the viewer from drawing (a GPU error, a session ended).
     pub error: Option<String>,
+    /// The demo session, in a line ("following demo (member 3); ...").
+    pub demo: Option<String>,
     /// The camera shown.
     #[serde(skip)]
     pub camera: Option<CameraSpec>,

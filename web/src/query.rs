@@ -1,6 +1,7 @@
 //! The viewer's options from the page's query string:
 //! `?panel=0&backend=webgl&kernel=round&threshold=2&budget=N&plp_budget=P&plp_budget_ms=MS&epsilon_px=E&outlines=1&cache_mib=M&access_token=T`,
-//! and `flight=SECONDS` (the benchmark's scripted flight).
+//! `flight=SECONDS` (the benchmark's scripted flight), and
+//! `session=NAME&role=follow|present` (a demo session).
 
 use farfield_render::Kernel;
 use farfield_viewer::AppOptions;
@@ -67,6 +68,14 @@ pub fn parse(search: &str) -> Result<Query, String> {
         Some("round") => Kernel::Round,
         Some(other) => return Err(format!("kernel={other} is not square or round")),
     };
+    if let Some(session) = params.get("session") {
+        let present = match params.get("role").as_deref() {
+            None | Some("follow") => false,
+            Some("present") => true,
+            Some(other) => return Err(format!("role={other} is not follow or present")),
+        };
+        options.demo = Some(farfield_view::render_job::DemoRole { session, present });
+    }
     let backend = match params.get("backend").as_deref() {
         None | Some("auto") | Some("webgpu") => Backend::Auto,
         Some("webgl") | Some("webgl2") => Backend::WebGl,

@@ -34,6 +34,8 @@ pub struct ViewJob {
     pub screenshot_when_refined: Option<PathBuf>,
     /// Fly the benchmark's path this many seconds, print its report, close.
     pub flight_seconds: Option<f64>,
+    /// A demo session to join at start.
+    pub demo: Option<farfield_view::render_job::DemoRole>,
 }
 
 pub fn run(job: ViewJob) -> anyhow::Result<()> {
@@ -72,6 +74,7 @@ pub fn run(job: ViewJob) -> anyhow::Result<()> {
         settings: job.settings,
         show_panel: job.show_panel,
         flight_seconds: job.flight_seconds,
+        demo: job.demo,
     };
     let window = Window {
         save_to: job.screenshot_when_refined,

@@ -5,7 +5,8 @@
 //! refine again to the new view's image; a server restart must leave the
 //! image up and the viewer resume asking only for what it lacks; a PLP
 //! scene must show `farfield render --budget`'s image at the budget in the
-//! page's address.
+//! page's address; a page following a demo session must rest at each view
+//! its presenter shows.
 
 use std::net::SocketAddr;
 use std::path::PathBuf;
@@ -373,5 +374,68 @@ fn one_finger_orbits_two_fingers_pinch_to_zoom_and_w_flies_forward() {
         "the view's depth stays"
     );
     drop(browser);
+    rt.block_on(server.shutdown()).unwrap();
+}
+
+/// Within a millionth of the scene's size.
+fn near(a: glam::DVec3, b: glam::DVec3) -> bool {
+    (a - b).length() <= 1e-6 * b.length().max(1.0)
+}
+
+/// A page opened at `?session=demo&role=follow` draws the presenter's
+/// view, and follows it when the presenter moves.
+#[test]
+fn the_browser_follows_a_demo_sessions_presenter() {
+    let _one = ONE_BROWSER.lock().unwrap_or_else(|e| e.into_inner());
+    let Some((_, web)) = browser_ready("viewer-browser-demo") else {
+        return;
+    };
+    let (dir, _) = crate::streaming::scenes("viewer-browser-demo-scenes");
+    let rt = runtime();
+    let server = rt.block_on(serve(&dir, &web, "127.0.0.1:0".parse().unwrap()));
+    let url = format!("http://{}", server.local_addr());
+    let mut presenter = crate::demo_sessions::Member::join(&url, true);
+    presenter.until("the seat", |m| {
+        m.link.is_presenting() && m.viewer.header().is_some()
+    });
+    let first = crate::demo_sessions::orbit(40.0, &presenter);
+    presenter
+        .link
+        .show(&mut presenter.viewer, &first, Vec::new());
+    let browser = Browser::start(SIZE.0, SIZE.1);
+    browser.goto(&format!(
+        "{url}/view/island?panel=0&backend=webgl&session=demo&role=follow"
+    ));
+    let next = crate::demo_sessions::orbit(160.0, &presenter);
+    for (what, camera) in [("the first view", first), ("the next view", next)] {
+        if camera == next {
+            presenter
+                .link
+                .show(&mut presenter.viewer, &camera, Vec::new());
+        }
+        let at = "return document.getElementById('farfield').dataset.refined === 'true' \
+             && (JSON.parse(document.getElementById('farfield').dataset.status || '{}').demo || '').startsWith('following demo') \
+             && location.hash.length > 1";
+        browser.wait_for(what, at, REPORT, WAIT);
+        let started = std::time::Instant::now();
+        loop {
+            let hash = browser.eval("return location.hash");
+            let (eye, target) = eye_target(hash.as_str().unwrap_or_default());
+            if near(eye, camera.eye) && near(target, camera.target) {
+                break;
+            }
+            assert!(
+                started.elapsed() < WAIT,
+                "{what}: the page rests at {eye}, {target}, not the presenter's {}, {}",
+                camera.eye,
+                camera.target
+            );
+            std::thread::sleep(Duration::from_millis(100));
+        }
+    }
+    let sessions = server.sessions();
+    assert_eq!(sessions[0].followers, 1, "{sessions:?}");
+    drop(browser);
+    drop(presenter);
     rt.block_on(server.shutdown()).unwrap();
 }
