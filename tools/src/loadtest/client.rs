@@ -20,6 +20,7 @@ use std::time::{Duration, Instant};
 use farfield_net::queue::QueueTransport;
 use farfield_net::websocket::drive_wire;
 use farfield_net::{NetStats, SessionOptions};
+use farfield_protocol::camera::Camera;
 use farfield_view::demo_link::DemoLink;
 use farfield_view::frame_loop::{LastCut, traverse_frame};
 use farfield_view::path::CameraPath;
@@ -101,6 +102,7 @@ pub async fn run(index: usize, clients: usize, shared: Arc<Shared>) -> ClientRow
             job.client_cache_bytes,
         );
         client.seen = NetStats::default();
+        client.last_frame = None;
         client.demo = job
             .session
             .as_deref()
@@ -146,6 +148,8 @@ struct Client {
     last_seq: u64,
     /// When a follower refused (its session not made yet) asks again.
     rejoin_at: Option<Instant>,
+    /// The last traversal's camera and the pages received by then.
+    last_frame: Option<(Camera, u64)>,
 }
 
 impl Client {
@@ -162,6 +166,7 @@ impl Client {
             demo: None,
             last_seq: 0,
             rejoin_at: None,
+            last_frame: None,
         }
     }
 
@@ -298,6 +303,13 @@ impl Client {
             Some(link) => link.camera(job.width, job.height).unwrap_or(own),
             None => own,
         };
+        // As a viewer at rest draws nothing new: the same camera over the
+        // same pages gives the same cut and asks for nothing new.
+        let received = viewer.stats().pages_received;
+        if self.last_frame == Some((camera, received)) {
+            return Ok(());
+        }
+        self.last_frame = Some((camera, received));
         traverse_frame(viewer, &camera, job.threshold_px, 1, &mut self.cut)?;
         let ms = since_start.as_secs_f64() * 1e3;
         if row.first_image_ms.is_none() && self.cut.drawn() > 0 {
