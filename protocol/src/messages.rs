@@ -103,6 +103,9 @@ pub struct SharedView {
     pub options: Vec<(String, String)>,
 }
 
+/// Most follower ids a [`SessionState`] lists.
+pub const LISTED_FOLLOWERS: usize = 64;
+
 /// Who is in a demo session, as one member is told.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct SessionState {
@@ -112,7 +115,12 @@ pub struct SessionState {
     /// The presenter's id; it may be away (see `presenter_connected`).
     pub presenter: Option<u64>,
     pub presenter_connected: bool,
-    /// Members following now, ids ascending.
+    /// Members following now.
+    pub follower_count: u32,
+    /// The first of them by id, at most [`LISTED_FOLLOWERS`] (whom a
+    /// presenter's panel offers to hand over to): every member is told on
+    /// every change, so a full list would cost the server the square of
+    /// the followers.
     pub followers: Vec<u64>,
     /// Seconds left before the session closes, while its presenter is away.
     pub closes_in_s: Option<f64>,

@@ -25,7 +25,7 @@ use std::time::{Duration, Instant};
 
 use axum::body::Bytes;
 use farfield_protocol::codec::encode_control;
-use farfield_protocol::messages::{ServerMessage, SessionState, SharedView};
+use farfield_protocol::messages::{LISTED_FOLLOWERS, ServerMessage, SessionState, SharedView};
 use serde::Serialize;
 use tokio::sync::Notify;
 
@@ -120,7 +120,9 @@ impl DemoSession {
         let closes_in_s = self
             .away_since
             .map(|t| grace.saturating_sub(t.elapsed()).as_secs_f64());
-        let followers = self.followers();
+        let all = self.followers();
+        let follower_count = u32::try_from(all.len()).unwrap_or(u32::MAX);
+        let followers: Vec<u64> = all.into_iter().take(LISTED_FOLLOWERS).collect();
         for (&id, member) in &self.members {
             let frame = Bytes::from(encode_control(&ServerMessage::SessionState {
                 state: SessionState {
@@ -128,6 +130,7 @@ impl DemoSession {
                     you: id,
                     presenter: self.presenter,
                     presenter_connected: self.presenter_connected(),
+                    follower_count,
                     followers: followers.clone(),
                     closes_in_s,
                 },
@@ -539,6 +542,25 @@ mod tests {
             matches!(last, Some(ServerMessage::SessionClosed { .. })),
             "{last:?}"
         );
+    }
+
+    #[test]
+    fn a_state_lists_a_bounded_few_followers_and_counts_them_all() {
+        let r = registry(1000);
+        r.join("big", "s", true, 1, &mailbox()).unwrap();
+        let last = mailbox();
+        for id in 2..=(LISTED_FOLLOWERS as u64 + 11) {
+            r.join("big", "s", false, id, &last).unwrap();
+        }
+        while let Some(m) = next(&last) {
+            if let ServerMessage::SessionState { state } = m {
+                assert_eq!(state.follower_count as usize, LISTED_FOLLOWERS + 10);
+                assert_eq!(state.followers.len(), LISTED_FOLLOWERS);
+                assert_eq!(state.followers[0], 2, "the first by id");
+                return;
+            }
+        }
+        panic!("no state");
     }
 
     #[test]

@@ -133,9 +133,7 @@ impl Demo {
         };
         Some(format!(
             "{role} {} (member {}); {presenter}; {} following",
-            link.name,
-            state.you,
-            state.followers.len()
+            link.name, state.you, state.follower_count
         ))
     }
 
