@@ -53,11 +53,8 @@ pub struct Interval {
 impl Interval {
     fn new() -> Self {
         Self {
-            // Bounds that are valid by construction.
-            latency_us: Histogram::new_with_bounds(1, MAX_LATENCY_US, 3)
-                .expect("valid histogram bounds"),
-            lag_us: Histogram::new_with_bounds(1, MAX_LATENCY_US, 3)
-                .expect("valid histogram bounds"),
+            latency_us: microseconds(),
+            lag_us: microseconds(),
             pages: 0,
             bytes: 0,
             errors: 0,
@@ -88,6 +85,13 @@ impl Interval {
     pub fn lag_ms(&self, q: f64) -> Option<f64> {
         (!self.lag_us.is_empty()).then(|| self.lag_us.value_at_quantile(q) as f64 / 1e3)
     }
+}
+
+/// An empty histogram of 1 µs to an hour at three significant digits.
+fn microseconds() -> Histogram<u64> {
+    // Constant bounds that new_with_bounds accepts (low >= 1, high >= 2 *
+    // low, 3 digits within 0..=5): its error cannot happen here.
+    Histogram::new_with_bounds(1, MAX_LATENCY_US, 3).expect("constant, valid histogram bounds")
 }
 
 fn record(h: &mut Histogram<u64>, values: &[Duration]) {
