@@ -56,6 +56,12 @@ pub enum Command {
     /// quantiles, throughput, errors and reconnects, time to first image
     /// and to refined, and the server's metrics over the run.
     Loadtest(Box<LoadtestArgs>),
+    /// An emulated wide-area network (Linux, root): namespaces NAME-server
+    /// and NAME-client joined by a link with a round trip, a rate and
+    /// random loss, until interrupted (SIGINT, SIGTERM). Run the
+    /// server in one with `ip netns exec NAME-server ...`, clients in the
+    /// other.
+    Wan(WanArgs),
     /// One HTML page (plots, tables, machine, the papers' figures) from
     /// bench and load-test folders.
     Report {
@@ -334,9 +340,29 @@ pub struct LoadtestArgs {
     /// (flies the path), the others follow; their lag is measured.
     #[arg(long, value_name = "NAME")]
     pub session: Option<String>,
+    /// Let the server push pages the clients have not asked for yet,
+    /// when their queues are empty.
+    #[arg(long)]
+    pub push: bool,
     /// Print the summary as JSON.
     #[arg(long)]
     pub json: bool,
+}
+
+#[derive(Debug, clap::Args)]
+pub struct WanArgs {
+    /// Names the namespaces (1 to 8 of a-z, 0-9).
+    #[arg(long, default_value = "ffwan")]
+    pub name: String,
+    /// Round trip, milliseconds (half each way).
+    #[arg(long, default_value_t = 40.0)]
+    pub rtt_ms: f64,
+    /// The link's rate each way, megabits a second (unlimited if not given).
+    #[arg(long)]
+    pub rate_mbit: Option<f64>,
+    /// Packets lost at random each way, percent.
+    #[arg(long, default_value_t = 0.0)]
+    pub loss_percent: f64,
 }
 
 #[derive(Debug, clap::Args)]
@@ -497,6 +523,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::View(args) => commands::view::run(view_job(*args)?),
         Command::Bench(args) => commands::measure::bench(*args),
         Command::Loadtest(args) => commands::measure::loadtest(*args),
+        Command::Wan(args) => commands::wan::run(&args),
         Command::Report { dirs, out } => commands::measure::report(&dirs, &out),
         Command::BenchCubes(args) => commands::measure::bench_cubes(*args),
         Command::BenchPlp(args) => commands::measure::bench_plp(*args),

@@ -103,6 +103,43 @@ pub struct SharedView {
     pub options: Vec<(String, String)>,
 }
 
+impl SharedView {
+    /// This view as a camera of `width` x `height`, or `None` for a view
+    /// no camera can take (not finite, eye on target, no up, a field of
+    /// view outside 1..179 degrees): a presenter's bad view is neither
+    /// drawn by followers nor walked by the server.
+    pub fn camera(&self, width: u32, height: u32) -> Option<crate::camera::Camera> {
+        use glam::DVec3;
+        let (eye, target, up) = (
+            DVec3::from_array(self.eye),
+            DVec3::from_array(self.target),
+            DVec3::from_array(self.up),
+        );
+        let sane = eye.is_finite()
+            && target.is_finite()
+            && up.is_finite()
+            && (target - eye).length() > 0.0
+            && (target - eye).cross(up).length() > 0.0
+            && (1.0..=179.0).contains(&self.fov_y_deg);
+        sane.then_some(crate::camera::Camera {
+            eye,
+            target,
+            up,
+            fov_y_deg: self.fov_y_deg,
+            width,
+            height,
+        })
+    }
+
+    /// The value of option `key`, if the presenter gave it.
+    pub fn option(&self, key: &str) -> Option<&str> {
+        self.options
+            .iter()
+            .find(|(k, _)| k == key)
+            .map(|(_, v)| v.as_str())
+    }
+}
+
 /// Most follower ids a [`SessionState`] lists.
 pub const LISTED_FOLLOWERS: usize = 64;
 

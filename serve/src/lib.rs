@@ -12,6 +12,8 @@
 //! - [`rescan`]: the catalog kept in step with the disk while serving;
 //! - [`cache`]: the byte-bounded LRU of verified page frames;
 //! - [`prefetch`]: read-ahead of child pages on a small thread pool;
+//! - [`lookahead`]: read-ahead along a demo presenter's extrapolated
+//!   motion, walked with the client's own traversal;
 //! - [`schedule`]: one connection's priority queue and in-flight window;
 //! - [`limits`]: what one client may cost and how long it may take;
 //!   `admission` and `listen` enforce them at the socket, `session` after
@@ -28,6 +30,7 @@ pub mod catalog;
 pub mod demo;
 pub mod limits;
 mod listen;
+pub mod lookahead;
 pub mod metrics;
 mod pages;
 pub mod prefetch;
@@ -53,6 +56,7 @@ use self::admission::Admission;
 use self::cache::PageCache;
 use self::catalog::Catalog;
 use self::limits::Limits;
+use self::lookahead::Lookahead;
 use self::metrics::{Metrics, MetricsSnapshot};
 use self::prefetch::Prefetcher;
 use self::rescan::{DEFAULT_RESCAN_INTERVAL, Origin, Rescanner};
@@ -144,6 +148,8 @@ pub(crate) struct AppState {
     pub cache: Arc<PageCache>,
     pub metrics: Arc<Metrics>,
     pub prefetch: Prefetcher,
+    /// Read-ahead along demo presenters' motion.
+    pub lookahead: Lookahead,
     pub limits: Limits,
     pub access: Access,
     /// Becomes `true` when the server is shutting down.
@@ -218,12 +224,15 @@ pub async fn start(config: ServerConfig) -> Result<RunningServer, ServeError> {
     let cache = Arc::new(PageCache::new(cache_bytes, &metrics));
     let prefetch =
         Prefetcher::start(cache.clone(), metrics.clone()).map_err(ServeError::Threads)?;
+    let lookahead =
+        Lookahead::start(cache.clone(), metrics.clone()).map_err(ServeError::Threads)?;
     let (shutdown_tx, shutdown_rx) = watch::channel(false);
     let state = Arc::new(AppState {
         catalog,
         cache,
         metrics,
         prefetch,
+        lookahead,
         limits: limits.clone(),
         access,
         shutdown: shutdown_rx.clone(),

@@ -37,6 +37,11 @@ pub struct Metrics {
     pub cache_capacity_bytes: AtomicU64,
     pub prefetch_loads: AtomicU64,
     pub prefetch_dropped: AtomicU64,
+    /// Look-ahead along presenters' motion: passes walked, pages it read
+    /// into the cache, and passes dropped because the queue was full.
+    pub lookahead_passes: AtomicU64,
+    pub lookahead_loads: AtomicU64,
+    pub lookahead_dropped: AtomicU64,
     pub corrupt_pages: AtomicU64,
     pub malformed_frames: AtomicU64,
     pub connections_total: AtomicU64,
@@ -110,6 +115,9 @@ pub struct MetricsSnapshot {
     pub cache_capacity_bytes: u64,
     pub prefetch_loads: u64,
     pub prefetch_dropped: u64,
+    pub lookahead_passes: u64,
+    pub lookahead_loads: u64,
+    pub lookahead_dropped: u64,
     pub corrupt_pages: u64,
     pub malformed_frames: u64,
     pub connections_total: u64,
@@ -177,6 +185,9 @@ impl Metrics {
             cache_capacity_bytes: get(&self.cache_capacity_bytes),
             prefetch_loads: get(&self.prefetch_loads),
             prefetch_dropped: get(&self.prefetch_dropped),
+            lookahead_passes: get(&self.lookahead_passes),
+            lookahead_loads: get(&self.lookahead_loads),
+            lookahead_dropped: get(&self.lookahead_dropped),
             corrupt_pages: get(&self.corrupt_pages),
             malformed_frames: get(&self.malformed_frames),
             connections_total: get(&self.connections_total),
@@ -277,6 +288,24 @@ impl Metrics {
             "counter",
             "Read-ahead hints dropped because the prefetch queue was full.",
             s.prefetch_dropped,
+        );
+        metric(
+            "farfield_lookahead_passes_total",
+            "counter",
+            "Walks of a presenter's extrapolated view, ahead of its motion.",
+            s.lookahead_passes,
+        );
+        metric(
+            "farfield_lookahead_loads_total",
+            "counter",
+            "Pages read into the cache for a presenter's extrapolated view.",
+            s.lookahead_loads,
+        );
+        metric(
+            "farfield_lookahead_dropped_total",
+            "counter",
+            "Look-ahead walks dropped because their queue was full.",
+            s.lookahead_dropped,
         );
         metric(
             "farfield_corrupt_pages_total",

@@ -656,7 +656,10 @@ fn apply(
             }
         }
         ClientMessage::View { view } => with_seat(&mut shared.lock(), |seat| {
-            app.demo.view(&seat.name, shared.member, view)
+            // Only a presenter's view is taken, and walked ahead of its motion.
+            app.demo.view(&seat.name, shared.member, view.clone())?;
+            app.lookahead.observe(&seat.name, scene, &view);
+            Ok(())
         })?,
         ClientMessage::HandOver { to } => with_seat(&mut shared.lock(), |seat| {
             app.demo.hand_over(&seat.name, shared.member, to)

@@ -327,3 +327,97 @@ fn eight_followers_cost_the_disk_about_what_one_client_costs() {
     drop(presenter);
     rt.block_on(server.shutdown()).expect("shutdown");
 }
+
+/// The server reads ahead along a presenter's motion: a presenter that
+/// moves in (and asks for no pages itself) makes the server walk where it
+/// will be and read those pages, so a client there finds them in the
+/// cache. The same client after a presenter at rest finds the disk.
+#[test]
+fn the_server_reads_ahead_along_the_presenters_motion() {
+    // More pages than the small island has, so a walk has work to do.
+    let dir = farfield_tests::scratch("demo-lookahead");
+    let mut params = farfield_builder::import::Params::default();
+    params.set("trees", 12);
+    farfield_store::write_atomic(
+        &dir.join("island.ff"),
+        &crate::build(farfield_builder::import::load_input("gen:island", &params).unwrap()),
+    )
+    .unwrap();
+    let rt = runtime();
+    let at = |distance: f64, m: &Member| {
+        CameraSpec::Orbit {
+            azimuth_deg: 40.0,
+            elevation_deg: 20.0,
+            distance,
+        }
+        .resolve(m.viewer.header().expect("header"), SIZE.0, SIZE.1)
+    };
+    // (passes walked, pages read for a client where the motion leads,
+    // pages it received)
+    let run = |moving: bool| {
+        let server = serve_with_grace(&rt, &dir, Duration::from_secs(5));
+        let url = format!("http://{}", server.local_addr());
+        let mut presenter = Member::join(&url, true);
+        presenter.until("the seat", |m| {
+            m.link.is_presenting() && m.viewer.header().is_some()
+        });
+        // From 3.0 to 2.8 in 100 ms: half a second on is 1.8.
+        let views = if moving { vec![3.0, 2.8] } else { vec![2.8] };
+        for (i, distance) in views.into_iter().enumerate() {
+            if i > 0 {
+                std::thread::sleep(Duration::from_millis(100));
+            }
+            let camera = at(distance, &presenter);
+            presenter
+                .link
+                .show(&mut presenter.viewer, &camera, Vec::new());
+            presenter
+                .viewer
+                .pump(Duration::from_millis(5))
+                .expect("pump");
+        }
+        // The walk ends before its pass is counted.
+        let started = Instant::now();
+        while moving && server.metrics().lookahead_passes == 0 {
+            assert!(started.elapsed() < WAIT, "no look-ahead walk");
+            presenter
+                .viewer
+                .pump(Duration::from_millis(10))
+                .expect("pump");
+        }
+        std::thread::sleep(Duration::from_millis(200));
+        let before = server.metrics();
+        let mut client = Member::join(&url, false);
+        client.until("the header", |m| m.viewer.header().is_some());
+        let ahead = at(1.8, &client);
+        client.refine(&ahead);
+        let after = server.metrics();
+        let result = (
+            after.lookahead_passes,
+            after.disk_reads - before.disk_reads,
+            client.viewer.stats().pages_received,
+        );
+        drop((presenter, client));
+        rt.block_on(server.shutdown()).expect("shutdown");
+        result
+    };
+    let (passes, reads_ahead, received_ahead) = run(true);
+    let (rest_passes, reads_rest, received_rest) = run(false);
+    eprintln!(
+        "look-ahead: {passes} walks; the client there made {reads_ahead} disk reads for \
+         {received_ahead} pages; after a presenter at rest, {reads_rest} for {received_rest}"
+    );
+    assert_eq!(rest_passes, 0, "a presenter at rest is not walked ahead");
+    assert!(
+        received_ahead > 10 && received_rest > 10,
+        "the client streamed"
+    );
+    assert!(
+        reads_rest as f64 >= 0.5 * received_rest as f64,
+        "without look-ahead the pages come from the disk"
+    );
+    assert!(
+        (reads_ahead as f64) <= 0.25 * received_ahead as f64,
+        "{reads_ahead} disk reads for {received_ahead} pages: the walk did not read ahead"
+    );
+}

@@ -28,6 +28,7 @@ mod surface;
 mod tls;
 mod traversal;
 mod viewer;
+mod wan;
 mod xvfb;
 
 use std::path::Path;

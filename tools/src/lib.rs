@@ -15,6 +15,8 @@
 //! - [`loadtest`]: many headless clients against one server (`farfield
 //!   loadtest`): latency quantiles, throughput, errors, the server's
 //!   metrics over time.
+//! - `wan` (Linux): an emulated wide-area link between a server's and its
+//!   clients' network namespaces (`farfield wan`), where the kernel has no netem.
 //! - [`bench_build`]: `farfield-server bench build` and `bench traverse`:
 //!   build throughput, traversal rate.
 //! - [`reference`](mod@reference): a scene's full geometry, the reference renders are
@@ -31,6 +33,8 @@ pub mod loadtest;
 pub mod meters;
 pub mod reference;
 pub mod stats;
+#[cfg(target_os = "linux")]
+pub mod wan;
 
 /// What a measuring command produced: one JSON object (printed with
 /// `--json`) and a human summary.

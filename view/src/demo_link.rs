@@ -11,7 +11,6 @@
 use farfield_net::DemoEvent;
 use farfield_protocol::camera::Camera;
 use farfield_protocol::messages::{SessionState, SharedView};
-use glam::DVec3;
 use web_time::Instant;
 
 use crate::viewer::Viewer;
@@ -98,10 +97,20 @@ impl DemoLink {
     }
 
     /// Shows `camera` and `options` to the followers when presenting and
-    /// they changed since the last view shown.
-    pub fn show(&mut self, viewer: &mut Viewer, camera: &Camera, options: Vec<(String, String)>) {
+    /// they changed since the last view shown. The camera's size goes
+    /// with them (`size`, `WxH`): the server walks the presenter's view
+    /// ahead of its motion at that size.
+    pub fn show(
+        &mut self,
+        viewer: &mut Viewer,
+        camera: &Camera,
+        mut options: Vec<(String, String)>,
+    ) {
         if !self.is_presenting() {
             return;
+        }
+        if !options.iter().any(|(key, _)| key == "size") {
+            options.push(("size".into(), format!("{}x{}", camera.width, camera.height)));
         }
         let view = view_of(camera, options);
         if self.shown.as_ref() == Some(&view) {
@@ -140,33 +149,15 @@ pub fn view_of(camera: &Camera, options: Vec<(String, String)>) -> SharedView {
 }
 
 /// A shared view as a camera of `width` x `height`, or `None` for a view
-/// no camera can take (not finite, eye on target, no up, a field of view
-/// outside 1..179 degrees): a presenter's bad view is not drawn.
+/// no camera can take ([`SharedView::camera`]).
 pub fn camera_of(view: &SharedView, width: u32, height: u32) -> Option<Camera> {
-    let (eye, target, up) = (
-        DVec3::from_array(view.eye),
-        DVec3::from_array(view.target),
-        DVec3::from_array(view.up),
-    );
-    let sane = eye.is_finite()
-        && target.is_finite()
-        && up.is_finite()
-        && (target - eye).length() > 0.0
-        && (target - eye).cross(up).length() > 0.0
-        && (1.0..=179.0).contains(&view.fov_y_deg);
-    sane.then_some(Camera {
-        eye,
-        target,
-        up,
-        fov_y_deg: view.fov_y_deg,
-        width,
-        height,
-    })
+    view.camera(width, height)
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use glam::DVec3;
 
     #[test]
     fn views_and_cameras_round_trip_and_bad_views_are_refused() {

@@ -188,6 +188,7 @@ pub fn loadtest(args: crate::cli::LoadtestArgs) -> anyhow::Result<()> {
         client_cache_bytes: args.client_cache_mib.max(1) << 20,
         token: args.token,
         session: args.session,
+        push: args.push,
         ..farfield_tools::loadtest::LoadJob::new(
             &args.server,
             &args.scene,

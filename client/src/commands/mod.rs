@@ -8,3 +8,4 @@ pub mod path;
 pub mod render;
 pub mod traverse;
 pub mod view;
+pub mod wan;

@@ -624,14 +624,10 @@ fn serve_cli_child() {
     };
     let dir = dir.to_string_lossy().into_owned();
     let extra = std::env::var("FARFIELD_SERVE_CHILD_ARGS").unwrap_or_default();
-    let mut args = vec![
-        "serve",
-        "--scenes",
-        &dir,
-        "--listen",
-        "127.0.0.1:0",
-        "--json",
-    ];
+    let mut args = vec!["serve", "--scenes", &dir, "--json"];
+    if !extra.contains("--listen") {
+        args.extend(["--listen", "127.0.0.1:0"]);
+    }
     args.extend(extra.split_whitespace());
     let report = crate::cli(&args).expect("serve");
     println!("{}", report.json);

@@ -292,9 +292,24 @@ pub(crate) struct ChildServer {
 
 impl ChildServer {
     pub(crate) fn start(dir: &Path, extra_args: &str) -> Self {
+        Self::start_in(None, dir, extra_args)
+    }
+
+    /// As [`ChildServer::start`], inside network namespace `netns` (run
+    /// through `ip netns exec`) when one is given.
+    pub(crate) fn start_in(netns: Option<&str>, dir: &Path, extra_args: &str) -> Self {
         use std::io::{BufRead, BufReader};
         use std::process::{Command, Stdio};
-        let mut child = Command::new(std::env::current_exe().expect("test binary"))
+        let exe = std::env::current_exe().expect("test binary");
+        let mut command = match netns {
+            Some(ns) => {
+                let mut c = Command::new("ip");
+                c.args(["netns", "exec", ns]).arg(exe);
+                c
+            }
+            None => Command::new(exe),
+        };
+        let mut child = command
             .args(["serve::serve_cli_child", "--exact", "--nocapture"])
             .env("FARFIELD_SERVE_CHILD_DIR", dir)
             .env("FARFIELD_SERVE_CHILD_ARGS", extra_args)

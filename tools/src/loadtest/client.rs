@@ -92,6 +92,7 @@ pub async fn run(index: usize, clients: usize, shared: Arc<Shared>) -> ClientRow
         let wire = QueueTransport::default();
         let options = SessionOptions {
             token: job.token.clone(),
+            allow_push: job.push,
             ..SessionOptions::default()
         };
         let mut viewer = Viewer::over(

@@ -64,6 +64,9 @@ pub struct LoadJob {
     pub token: Option<String>,
     /// A demo session: client 0 presents, the others follow.
     pub session: Option<String>,
+    /// Let the server push pages nobody asked for yet when a client's
+    /// queue is empty (the hello's `allow_push`).
+    pub push: bool,
 }
 
 impl LoadJob {
@@ -90,6 +93,7 @@ impl LoadJob {
             client_cache_bytes: 64 << 20,
             token: None,
             session: None,
+            push: false,
         }
     }
 
@@ -193,6 +197,9 @@ pub struct LoadReport {
     pub errors: u64,
     pub reconnects: u64,
     pub session: Option<String>,
+    /// Whether the clients allowed the server to push.
+    #[serde(default)]
+    pub push: bool,
     pub follower_lag_p50_ms: Option<f64>,
     pub follower_lag_p95_ms: Option<f64>,
     pub follower_lag_max_ms: Option<f64>,
@@ -431,6 +438,7 @@ fn summarize(
         errors: total.errors,
         reconnects: total.reconnects,
         session: job.session.clone(),
+        push: job.push,
         follower_lag_p50_ms: total.lag_ms(0.5),
         follower_lag_p95_ms: total.lag_ms(0.95),
         follower_lag_max_ms: (!total.lag_us.is_empty()).then(|| total.lag_us.max() as f64 / 1e3),
