@@ -344,6 +344,11 @@ pub struct LoadtestArgs {
     /// when their queues are empty.
     #[arg(long)]
     pub push: bool,
+    /// --server is a static file server (nginx, say) holding the scene as
+    /// `farfield-server export` writes it: the clients GET its pages, on
+    /// 4 keep-alive connections each. The comparison with a plain file server.
+    #[arg(long = "static")]
+    pub static_files: bool,
     /// Print the summary as JSON.
     #[arg(long)]
     pub json: bool,

@@ -277,3 +277,103 @@ fn a_load_as_a_demo_session_measures_the_followers_lag() {
         assert!(format!("{e:#}").contains("--session"), "{e:#}");
     }
 }
+
+/// A static file server over `root` that counts the GETs it answered:
+/// what nginx does for `--static`, in-process.
+async fn static_files(
+    root: std::path::PathBuf,
+    gets: std::sync::Arc<std::sync::atomic::AtomicU64>,
+) -> SocketAddr {
+    use axum::extract::Path as UrlPath;
+    use axum::http::StatusCode;
+    let app = axum::Router::new().route(
+        "/{*path}",
+        axum::routing::get(move |UrlPath(path): UrlPath<String>| {
+            let (root, gets) = (root.clone(), gets.clone());
+            async move {
+                gets.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                if path.split('/').any(|part| part == "..") {
+                    return Err(StatusCode::BAD_REQUEST);
+                }
+                std::fs::read(root.join(path)).map_err(|_| StatusCode::NOT_FOUND)
+            }
+        }),
+    );
+    let listener = tokio::net::TcpListener::bind("127.0.0.1:0")
+        .await
+        .expect("bind");
+    let addr = listener.local_addr().expect("addr");
+    tokio::spawn(async move { axum::serve(listener, app).await });
+    addr
+}
+
+/// The same clients against the scene exported as plain files
+/// (`farfield-server export`, then `loadtest --static`): they stream and
+/// draw from a file server too, and a scene it does not have is an error
+/// each client counts.
+#[test]
+fn load_clients_stream_an_exported_scene_from_a_static_file_server() {
+    let (dir, _) = scenes("loadtest-static");
+    let files = dir.join("static");
+    crate::cli(&[
+        "export",
+        dir.join("island.ff").to_str().unwrap(),
+        "--out",
+        files.to_str().unwrap(),
+    ])
+    .expect("export");
+    let header = farfield_store::SceneFile::open(&dir.join("island.ff")).unwrap();
+    let pages = header.header.pages.len();
+    assert_eq!(
+        std::fs::read_dir(files.join("island/pages"))
+            .unwrap()
+            .count(),
+        pages,
+        "one file a page"
+    );
+    let rt = tokio::runtime::Runtime::new().expect("runtime");
+    let gets = std::sync::Arc::new(std::sync::atomic::AtomicU64::new(0));
+    let addr = rt.block_on(static_files(files, gets.clone()));
+    let url = format!("http://{addr}");
+    let run = |scene: &str, out: &Path| {
+        cli(&[
+            "loadtest",
+            "--server",
+            &url,
+            "--static",
+            "--scene",
+            scene,
+            "--clients",
+            "2",
+            "--duration",
+            "3",
+            "--size",
+            "320x240",
+            "--out",
+            out.to_str().unwrap(),
+        ])
+        .expect("loadtest");
+        summary(out)
+    };
+    let r = run("island", &dir.join("run"));
+    assert!(r.static_files);
+    assert_eq!(r.errors, 0, "{r:?}");
+    assert_eq!(r.clients_with_first_image, 2, "{r:?}");
+    assert!(r.pages > 2, "{r:?}");
+    // Every page came by its own GET (and each client's header by one).
+    let answered = gets.load(std::sync::atomic::Ordering::Relaxed);
+    assert!(
+        r.pages + 2 <= answered,
+        "{} pages, {answered} GETs",
+        r.pages
+    );
+    assert!(r.latency_p50_ms.is_some(), "{r:?}");
+
+    let missing = run("nowhere", &dir.join("missing"));
+    assert_eq!(missing.pages, 0, "{missing:?}");
+    let clients = clients_of(&dir.join("missing"));
+    for c in &clients {
+        assert!(c.errors >= 1, "{c:?}");
+        assert!(c.last_error.contains("404"), "{c:?}");
+    }
+}

@@ -189,6 +189,7 @@ pub fn loadtest(args: crate::cli::LoadtestArgs) -> anyhow::Result<()> {
         token: args.token,
         session: args.session,
         push: args.push,
+        static_files: args.static_files,
         ..farfield_tools::loadtest::LoadJob::new(
             &args.server,
             &args.scene,

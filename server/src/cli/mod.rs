@@ -4,6 +4,7 @@
 //! an exit code. `main.rs` only parses, prints and exits.
 
 mod build;
+mod export;
 mod inspect;
 mod serve;
 
@@ -34,6 +35,24 @@ pub enum Command {
     Bench(BenchCommand),
     /// Serve every `*.ff` scene in a folder to streaming clients until SIGINT or SIGTERM.
     Serve(ServeArgs),
+    /// Write a scene's header and pages as plain files (`OUT/NAME/header`,
+    /// `OUT/NAME/pages/N`, exactly as stored), for a static file server:
+    /// what the load test's `--static` fetches, to compare with this server.
+    Export(ExportArgs),
+}
+
+#[derive(Debug, clap::Args)]
+pub struct ExportArgs {
+    /// The scene file.
+    pub file: PathBuf,
+    /// The folder to write into (the scene's files go in OUT/NAME).
+    #[arg(long)]
+    pub out: PathBuf,
+    /// The scene's name (the file's name without `.ff` if not given).
+    #[arg(long)]
+    pub name: Option<String>,
+    #[arg(long)]
+    pub json: bool,
 }
 
 #[derive(Debug, clap::Args)]
@@ -275,6 +294,7 @@ pub fn run(cli: Cli) -> anyhow::Result<Report> {
             json,
         ),
         Command::Serve(args) => serve::run(&args),
+        Command::Export(args) => export::run(&args),
     }
 }
 

@@ -29,6 +29,7 @@ use serde::{Deserialize, Serialize};
 
 use super::LoadJob;
 use super::recorder::{Recorder, Tick};
+use super::static_files::{FileServer, drive_static};
 
 /// What every client shares.
 #[derive(Debug)]
@@ -86,6 +87,18 @@ pub async fn run(index: usize, clients: usize, shared: Arc<Shared>) -> ClientRow
         }
         tokio::time::sleep(Duration::from_millis(50)).await;
     }
+    let files = if job.static_files {
+        match FileServer::resolve(&job.server).await {
+            Ok(files) => Some(files),
+            Err(e) => {
+                row.errors += 1;
+                row.last_error = format!("{e:#}");
+                return row;
+            }
+        }
+    } else {
+        None
+    };
     let phase = shared.path.duration() * index as f64 / clients.max(1) as f64;
     let mut client = Client::new(phase);
     while !shared.stop.load(Ordering::Relaxed) {
@@ -108,7 +121,11 @@ pub async fn run(index: usize, clients: usize, shared: Arc<Shared>) -> ClientRow
             .session
             .as_deref()
             .and_then(|name| DemoLink::join(&mut viewer, name, index == 0));
-        let ended = drive_wire(&wire, || client.step(&mut viewer, &shared, &mut row)).await;
+        let step = || client.step(&mut viewer, &shared, &mut row);
+        let ended = match &files {
+            Some(files) => drive_static(&wire, files, &job.scene, step).await,
+            None => drive_wire(&wire, step).await,
+        };
         client.set_connected(false, &shared);
         let Err(e) = ended else { break };
         // The session ended (refused, unreachable, a fatal server error):

@@ -22,6 +22,7 @@ pub mod client;
 pub mod output;
 pub mod recorder;
 pub mod scrape;
+pub mod static_files;
 
 use std::path::PathBuf;
 use std::sync::Arc;
@@ -67,6 +68,9 @@ pub struct LoadJob {
     /// Let the server push pages nobody asked for yet when a client's
     /// queue is empty (the hello's `allow_push`).
     pub push: bool,
+    /// `server` is a static file server holding `farfield-server
+    /// export`'s files: pages come by HTTP GET ([`static_files`]).
+    pub static_files: bool,
 }
 
 impl LoadJob {
@@ -94,6 +98,7 @@ impl LoadJob {
             token: None,
             session: None,
             push: false,
+            static_files: false,
         }
     }
 
@@ -125,6 +130,10 @@ impl LoadJob {
         );
         anyhow::ensure!(self.width > 0 && self.height > 0, "--size must not be 0");
         anyhow::ensure!(!self.scene.is_empty(), "--scene must not be empty");
+        anyhow::ensure!(
+            !self.static_files || (self.session.is_none() && !self.push),
+            "--static: a file server has no demo sessions and pushes nothing"
+        );
         if let Some(name) = &self.session {
             anyhow::ensure!(
                 farfield_serve::demo::valid_name(name),
@@ -200,6 +209,9 @@ pub struct LoadReport {
     /// Whether the clients allowed the server to push.
     #[serde(default)]
     pub push: bool,
+    /// Whether the server was a static file server (`--static`).
+    #[serde(default)]
+    pub static_files: bool,
     pub follower_lag_p50_ms: Option<f64>,
     pub follower_lag_p95_ms: Option<f64>,
     pub follower_lag_max_ms: Option<f64>,
@@ -439,6 +451,7 @@ fn summarize(
         reconnects: total.reconnects,
         session: job.session.clone(),
         push: job.push,
+        static_files: job.static_files,
         follower_lag_p50_ms: total.lag_ms(0.5),
         follower_lag_p95_ms: total.lag_ms(0.95),
         follower_lag_max_ms: (!total.lag_us.is_empty()).then(|| total.lag_us.max() as f64 / 1e3),
