@@ -3,8 +3,9 @@
 # scene exported as plain files (`farfield-server export`) behind nginx,
 # and the same load clients (`farfield loadtest --static`: GETs on 4
 # keep-alive connections a client, as a browser viewer of Potree or 3D
-# Tiles does) against the memory server's websocket. Prints both rows and
-# the ratios. Both servers, and the clients, share this machine's cores.
+# Tiles does) against the memory server's websocket. Prints both rows
+# (with the CPU seconds each server used) and the ratios. Both servers,
+# and the clients, share this machine's cores.
 #
 # Usage: benches/static_files.sh [OUT_DIR] (binaries from target/release;
 #   nginx from Debian's nginx package; CLIENTS ("16 64"), SECONDS_RUN,
@@ -58,25 +59,37 @@ for _ in $(seq 100); do
 done
 [ -n "$addr" ] || { echo "the server did not start: $(cat "$out/server.log")" >&2; exit 1; }
 
-printf '%-9s %7s %9s %7s %9s %9s %11s %12s %s\n' server clients pages/s MB/s \
-  "lat p50" "lat p99" "first p50" "refined p50" refined
+# CPU seconds (user + system) of a process and its children so far.
+cpu_s() {
+  local total=0 pid
+  for pid in "$@" $(pgrep -P "$1" || true); do
+    total=$((total + $(awk '{ print $14 + $15 }' /proc/$pid/stat 2>/dev/null || echo 0)))
+  done
+  awk -v t="$total" -v hz="$(getconf CLK_TCK)" 'BEGIN { printf "%.1f", t / hz }'
+}
+
+printf '%-9s %7s %9s %7s %9s %9s %11s %12s %9s %s\n' server clients pages/s MB/s \
+  "lat p50" "lat p99" "first p50" "refined p50" "CPU s" refined
 for clients in ${CLIENTS:-16 64}; do
   for server in farfield nginx; do
     run=$out/$server-$clients
     args=(--scene island --clients "$clients" --duration "$seconds" --ramp 2
       --size "${SIZE:-800x600}" --fps "${FPS:-10}" --client-cache-mib 32 --out "$run" --json)
+    pid=$server_pid; [ $server = nginx ] && pid=$nginx_pid
+    before=$(cpu_s $pid)
     if [ $server = nginx ]; then
       $bin/farfield loadtest --server "http://127.0.0.1:$port" --static "${args[@]}" > "$run.json"
     else
       $bin/farfield loadtest --server "http://$addr" "${args[@]}" > "$run.json"
     fi
-    python3 - "$run.json" "$server" <<'PY'
+    cpu=$(awk -v a="$(cpu_s $pid)" -v b="$before" 'BEGIN { printf "%.1f", a - b }')
+    python3 - "$run.json" "$server" "$cpu" <<'PY'
 import json, sys
 r = json.load(open(sys.argv[1]))
 f = lambda v: "-" if v is None else f"{v:.0f} ms"
 print(f"{sys.argv[2]:<9} {r['clients']:>7} {r['pages_per_s']:>9.0f} {r['mb_per_s']:>7.2f} "
       f"{f(r['latency_p50_ms']):>9} {f(r['latency_p99_ms']):>9} {f(r['first_image_p50_ms']):>11} "
-      f"{f(r['refined_p50_ms']):>12} {r['clients_refined']}/{r['clients']}, errors {r['errors']}")
+      f"{f(r['refined_p50_ms']):>12} {sys.argv[3]:>9} {r['clients_refined']}/{r['clients']}, errors {r['errors']}")
 PY
   done
   python3 - "$out/farfield-$clients.json" "$out/nginx-$clients.json" <<'PY'

@@ -53,8 +53,8 @@ serve() {
 local_addr=$(serve - 127.0.0.1 "$out/server-loopback.log")
 wan_addr=$(serve "$name-server" 10.201.0.1 "$out/server-wan.log")
 
-printf '%-9s %-5s %7s %12s %12s %12s %10s %8s %8s\n' network push clients \
-  "first p50" "refined p50" "refined max" "pages/s" "MB/s" "lat p50"
+printf '%-9s %-5s %7s %12s %12s %12s %10s %8s %8s %8s %9s\n' network push clients \
+  "first p50" "refined p50" "refined max" "pages/s" "MB/s" "MB" "lat p50" "lat p99"
 for clients in ${CLIENTS:-1 16}; do
   for push in off on; do
     for network in loopback wan; do
@@ -72,7 +72,7 @@ r = json.load(open(sys.argv[1]))
 f = lambda v: "-" if v is None else f"{v:.0f} ms"
 print(f"{sys.argv[2]:<9} {sys.argv[3]:<5} {r['clients']:>7} {f(r['first_image_p50_ms']):>12} "
       f"{f(r['refined_p50_ms']):>12} {f(r['refined_max_ms']):>12} {r['pages_per_s']:>10.0f} "
-      f"{r['mb_per_s']:>8.2f} {f(r['latency_p50_ms']):>8}  refined {r['clients_refined']}/{r['clients']}, errors {r['errors']}")
+      f"{r['mb_per_s']:>8.2f} {r['bytes'] / 1e6:>8.1f} {f(r['latency_p50_ms']):>8} {f(r['latency_p99_ms']):>9}  refined {r['clients_refined']}/{r['clients']}, errors {r['errors']}")
 PY
     done
   done
