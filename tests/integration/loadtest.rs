@@ -250,6 +250,9 @@ fn a_load_as_a_demo_session_measures_the_followers_lag() {
         r.follower_lag_p95_ms.expect("lag"),
     );
     assert!(0.0 < p50 && p50 <= p95, "{r:?}");
+    // The probe follower on its own thread saw the views too.
+    let probe = r.probe_lag_p50_ms.expect("the probe's lag");
+    assert!(probe > 0.0 && probe <= r.probe_lag_max_ms.unwrap(), "{r:?}");
     assert!(r.server_disk_reads_per_page_served.is_some(), "{r:?}");
     assert!(
         seconds_of(&out)

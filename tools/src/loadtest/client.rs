@@ -102,19 +102,7 @@ pub async fn run(index: usize, clients: usize, shared: Arc<Shared>) -> ClientRow
     let phase = shared.path.duration() * index as f64 / clients.max(1) as f64;
     let mut client = Client::new(phase);
     while !shared.stop.load(Ordering::Relaxed) {
-        let wire = QueueTransport::default();
-        let options = SessionOptions {
-            token: job.token.clone(),
-            allow_push: job.push,
-            ..SessionOptions::default()
-        };
-        let mut viewer = Viewer::over(
-            Box::new(wire.clone()),
-            &job.server,
-            &job.scene,
-            options,
-            job.client_cache_bytes,
-        );
+        let (wire, mut viewer) = connect(job, job.push, job.client_cache_bytes);
         client.seen = NetStats::default();
         client.last_frame = None;
         client.demo = job
@@ -145,6 +133,65 @@ pub async fn run(index: usize, clients: usize, shared: Arc<Shared>) -> ClientRow
         }
     }
     row
+}
+
+/// A viewer of the job's scene over a fresh queue, holding at most
+/// `cache_bytes` of pages, connecting now (the queue's owner drives it).
+fn connect(job: &LoadJob, push: bool, cache_bytes: usize) -> (QueueTransport, Viewer) {
+    let wire = QueueTransport::default();
+    let options = SessionOptions {
+        token: job.token.clone(),
+        allow_push: push,
+        ..SessionOptions::default()
+    };
+    let viewer = Viewer::over(
+        Box::new(wire.clone()),
+        &job.server,
+        &job.scene,
+        options,
+        cache_bytes,
+    );
+    (wire, viewer)
+}
+
+/// The demo session's lag probe: a follower that only listens (no
+/// traversal, no pages beyond the first), alone on its own thread, so the
+/// lag it sees is the server's fan-out and the socket's, not the wait for
+/// a turn on a core the load clients keep busy. Its lags are reported
+/// beside the followers'; it is not one of the clients.
+pub async fn probe(shared: Arc<Shared>) {
+    let job = &shared.job;
+    let Some(name) = job.session.clone() else {
+        return;
+    };
+    let mut last_seq = 0;
+    while !shared.stop.load(Ordering::Relaxed) {
+        let (wire, mut viewer) = connect(job, false, 1 << 20);
+        let Some(mut link) = DemoLink::join(&mut viewer, &name, false) else {
+            return;
+        };
+        let step = || -> anyhow::Result<bool> {
+            viewer.pump(Duration::ZERO)?;
+            link.update(&mut viewer);
+            if let Some((seq, view, arrived)) = &link.latest
+                && *seq != last_seq
+            {
+                last_seq = *seq;
+                let key = eye_bits(view.eye);
+                let shown = shared.shown.lock().unwrap_or_else(|e| e.into_inner());
+                if let Some((_, at)) = shown.iter().rev().find(|(k, _)| *k == key) {
+                    shared.recorder.record(&Tick {
+                        probe_lags: vec![arrived.saturating_duration_since(*at)],
+                        ..Tick::default()
+                    });
+                }
+            }
+            // Refused before the presenter made the session: joined again.
+            Ok(link.closed.is_none() && !shared.stop.load(Ordering::Relaxed))
+        };
+        let _ = drive_wire(&wire, step).await;
+        tokio::time::sleep(Duration::from_millis(200)).await;
+    }
 }
 
 /// A client's state between steps.
@@ -259,6 +306,7 @@ impl Client {
                 + gave_up.saturating_sub(self.seen.pages_unavailable),
             reconnects: stats.reconnects - self.seen.reconnects,
             lags,
+            probe_lags: Vec::new(),
         };
         self.seen = NetStats {
             pages_unavailable: gave_up,

@@ -216,6 +216,15 @@ pub struct LoadReport {
     pub follower_lag_p95_ms: Option<f64>,
     pub follower_lag_max_ms: Option<f64>,
     pub follower_views: u64,
+    /// The lag of a probe follower alone on its own thread, which never
+    /// traverses: the server's and the socket's share of the lag, without
+    /// the load clients' contention for this machine's cores.
+    #[serde(default)]
+    pub probe_lag_p50_ms: Option<f64>,
+    #[serde(default)]
+    pub probe_lag_p95_ms: Option<f64>,
+    #[serde(default)]
+    pub probe_lag_max_ms: Option<f64>,
     /// Pages the server read from disk per page it sent, over the run.
     pub server_disk_reads_per_page_served: Option<f64>,
     pub clients_with_first_image: usize,
@@ -253,8 +262,17 @@ pub fn run(job: &LoadJob) -> anyhow::Result<LoadReport> {
     });
     let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
     let workers = start_clients(&shared, threads)?;
+    let probe = match job.session {
+        Some(_) => Some(start_probe(&shared)?),
+        None => None,
+    };
     let watched = watch(&shared);
     shared.stop.store(true, Ordering::Relaxed);
+    if let Some(probe) = probe {
+        probe
+            .join()
+            .map_err(|_| anyhow::anyhow!("the lag probe panicked"))??;
+    }
     let mut clients = Vec::with_capacity(job.clients);
     for w in workers {
         clients.extend(
@@ -302,6 +320,24 @@ fn start_clients(
                 .context("starting a load thread")
         })
         .collect()
+}
+
+/// Starts the demo session's lag probe on a thread of its own.
+fn start_probe(
+    shared: &Arc<Shared>,
+) -> anyhow::Result<std::thread::JoinHandle<anyhow::Result<()>>> {
+    let shared = shared.clone();
+    std::thread::Builder::new()
+        .name("farfield-load-probe".into())
+        .spawn(move || {
+            let rt = tokio::runtime::Builder::new_current_thread()
+                .enable_all()
+                .build()?;
+            let local = tokio::task::LocalSet::new();
+            local.block_on(&rt, client::probe(shared));
+            Ok(())
+        })
+        .context("starting the lag probe")
 }
 
 /// Cuts a row every second until the run's duration is over; samples the
@@ -456,6 +492,10 @@ fn summarize(
         follower_lag_p95_ms: total.lag_ms(0.95),
         follower_lag_max_ms: (!total.lag_us.is_empty()).then(|| total.lag_us.max() as f64 / 1e3),
         follower_views: total.lag_us.len(),
+        probe_lag_p50_ms: total.probe_lag_ms(0.5),
+        probe_lag_p95_ms: total.probe_lag_ms(0.95),
+        probe_lag_max_ms: (!total.probe_lag_us.is_empty())
+            .then(|| total.probe_lag_us.max() as f64 / 1e3),
         server_disk_reads_per_page_served: watched.reads_per_page,
         clients_with_first_image: first.len(),
         first_image_p50_ms: quantile(&mut first, 0.5),
@@ -516,12 +556,16 @@ pub fn describe(r: &LoadReport) -> String {
             .as_ref()
             .map_or(String::new(), |e| format!(" (metrics not sampled: {e})")),
         r.session.as_ref().map_or(String::new(), |s| format!(
-            "demo session {s}: 1 presenter, {} followers; follower lag ms p50 {}, p95 {}, max {} ({} views)\n",
+            "demo session {s}: 1 presenter, {} followers; follower lag ms p50 {}, p95 {}, max {} ({} views); \
+             probe follower's lag ms p50 {}, p95 {}, max {}\n",
             r.clients - 1,
             ms(r.follower_lag_p50_ms),
             ms(r.follower_lag_p95_ms),
             ms(r.follower_lag_max_ms),
-            r.follower_views
+            r.follower_views,
+            ms(r.probe_lag_p50_ms),
+            ms(r.probe_lag_p95_ms),
+            ms(r.probe_lag_max_ms),
         )),
     )
 }

@@ -26,12 +26,17 @@ pub struct Tick {
     pub reconnects: u64,
     /// Demo followers: from the presenter showing a view to its arrival.
     pub lags: Vec<Duration>,
+    /// The lag probe's: a follower alone on its own thread (see
+    /// `client::probe`), so the server's fan-out is measured apart from
+    /// the load clients' contention.
+    pub probe_lags: Vec<Duration>,
 }
 
 impl Tick {
     fn is_empty(&self) -> bool {
         self.latencies.is_empty()
             && self.lags.is_empty()
+            && self.probe_lags.is_empty()
             && self.pages == 0
             && self.bytes == 0
             && self.errors == 0
@@ -44,6 +49,7 @@ impl Tick {
 pub struct Interval {
     pub latency_us: Histogram<u64>,
     pub lag_us: Histogram<u64>,
+    pub probe_lag_us: Histogram<u64>,
     pub pages: u64,
     pub bytes: u64,
     pub errors: u64,
@@ -55,6 +61,7 @@ impl Interval {
         Self {
             latency_us: microseconds(),
             lag_us: microseconds(),
+            probe_lag_us: microseconds(),
             pages: 0,
             bytes: 0,
             errors: 0,
@@ -65,6 +72,7 @@ impl Interval {
     fn add(&mut self, tick: &Tick) {
         record(&mut self.latency_us, &tick.latencies);
         record(&mut self.lag_us, &tick.lags);
+        record(&mut self.probe_lag_us, &tick.probe_lags);
         self.pages += tick.pages;
         self.bytes += tick.bytes;
         self.errors += tick.errors;
@@ -83,11 +91,19 @@ impl Interval {
 
     /// A demo follower's lag at quantile `q`, in milliseconds.
     pub fn lag_ms(&self, q: f64) -> Option<f64> {
-        (!self.lag_us.is_empty()).then(|| self.lag_us.value_at_quantile(q) as f64 / 1e3)
+        quantile_ms(&self.lag_us, q)
+    }
+
+    pub fn probe_lag_ms(&self, q: f64) -> Option<f64> {
+        quantile_ms(&self.probe_lag_us, q)
     }
 }
 
 /// An empty histogram of 1 µs to an hour at three significant digits.
+fn quantile_ms(h: &Histogram<u64>, q: f64) -> Option<f64> {
+    (!h.is_empty()).then(|| h.value_at_quantile(q) as f64 / 1e3)
+}
+
 fn microseconds() -> Histogram<u64> {
     // Constant bounds that new_with_bounds accepts (low >= 1, high >= 2 *
     // low, 3 digits within 0..=5): its error cannot happen here.
@@ -137,6 +153,7 @@ impl Recorder {
         let second = inner.0.clone();
         inner.0.latency_us.reset();
         inner.0.lag_us.reset();
+        inner.0.probe_lag_us.reset();
         (
             inner.0.pages,
             inner.0.bytes,
@@ -167,10 +184,12 @@ mod tests {
             errors: 1,
             reconnects: 0,
             lags: ms(&[20]),
+            probe_lags: ms(&[7]),
         });
         let first = r.cut();
         assert_eq!((first.pages, first.bytes, first.errors), (5, 500, 1));
         assert!((19.9..=20.1).contains(&first.lag_ms(0.95).unwrap()));
+        assert!((6.9..=7.1).contains(&first.probe_lag_ms(0.5).unwrap()));
         let p50 = first.latency_ms(0.5).unwrap();
         assert!((2.9..=3.1).contains(&p50), "{p50}");
         assert!((99.0..=100.1).contains(&first.latency_max_ms().unwrap()));
@@ -184,6 +203,7 @@ mod tests {
         assert_eq!((second.pages, second.errors, second.reconnects), (1, 0, 2));
         assert!((9.9..=10.1).contains(&second.latency_ms(0.99).unwrap()));
         assert!(second.lag_ms(0.5).is_none(), "cut with the second");
+        assert!(second.probe_lag_ms(0.5).is_none(), "cut with the second");
         assert!(r.cut().latency_ms(0.5).is_none(), "nothing came since");
         let total = r.total();
         assert_eq!((total.pages, total.errors, total.reconnects), (6, 1, 2));
