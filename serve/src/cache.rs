@@ -132,6 +132,9 @@ impl PageCache {
             PageError::Changed(why) => {
                 scene.retire(&format!("its file changed on disk: {why}"));
             }
+            // Not a verdict on the page: the store may answer later (the
+            // source logged the failure and counted it).
+            PageError::Unavailable(_) => {}
         })?;
         self.insert((scene.id, page), frame.clone(), metrics);
         Ok(frame)
@@ -158,8 +161,9 @@ impl PageCache {
             .await
         {
             Ok(result) => result,
-            // The blocking pool is gone (runtime shutting down): read here.
-            Err(_) => self.read_through(scene, page, metrics),
+            // The blocking pool is gone: the runtime is shutting down, and
+            // a read here could block it (a network store's would).
+            Err(_) => Err(PageError::Unavailable("the server is shutting down".into())),
         }
     }
 }

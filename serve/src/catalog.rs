@@ -1,6 +1,6 @@
-//! The scenes a server holds: one [`PageSource`] each (a [`SceneFile`],
-//! read by positional reads, for now), found by scanning a folder for
-//! `*.ff` or given as (name, path) pairs, and kept current while the server
+//! The scenes a server holds: one [`PageSource`] each (a file read by
+//! positional reads, or an object read by range requests), found through
+//! the server's [`crate::origin::Origin`] and kept current while the server
 //! runs by [`crate::rescan`].
 //!
 //! A scene also precomputes, per page, the range of pages that hold the
@@ -10,7 +10,6 @@
 
 use std::collections::BTreeMap;
 use std::ops::Range;
-use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU32, Ordering};
 use std::sync::{Arc, RwLock};
 
@@ -19,10 +18,9 @@ use tokio::sync::watch;
 
 use super::ServeError;
 use farfield_protocol::file::FileHeader;
-use farfield_store::{FileStamp, PageSource, SceneFile, StoreError};
+use farfield_store::{PageSource, Stamp, StoreError};
 
-/// The extension of the paged files a scenes folder is scanned for.
-pub const SCENE_EXTENSION: &str = "ff";
+use super::origin::Location;
 
 /// One scene being served.
 #[derive(Debug)]
@@ -30,9 +28,9 @@ pub struct ServedScene {
     /// Unique to this version of this scene; part of the page cache key.
     pub id: u32,
     pub name: String,
-    /// The file it was opened from, and that file's stamp then.
-    pub path: PathBuf,
-    pub stamp: FileStamp,
+    /// Where it is stored, and the version opened.
+    pub location: Location,
+    pub stamp: Stamp,
     /// Where its header and pages come from.
     pub source: Box<dyn PageSource>,
     /// Per page: the pages holding children of its nodes (never itself).
@@ -42,15 +40,15 @@ pub struct ServedScene {
 }
 
 impl ServedScene {
-    pub fn open(id: u32, name: &str, path: &Path) -> Result<Self, StoreError> {
-        let source = SceneFile::open(path)?;
-        let children = child_ranges(&source.header);
+    pub fn open(id: u32, name: &str, location: &Location) -> Result<Self, StoreError> {
+        let source = location.open()?;
+        let children = child_ranges(source.header());
         Ok(Self {
             id,
             name: name.to_owned(),
-            path: path.to_owned(),
+            location: location.clone(),
             stamp: source.stamp(),
-            source: Box::new(source),
+            source,
             children,
             retired: watch::Sender::new(None),
         })
@@ -69,7 +67,7 @@ impl ServedScene {
         if newly {
             tracing::warn!(
                 scene = %self.name,
-                path = %self.path.display(),
+                location = %self.location,
                 "scene taken out of service: {reason}"
             );
         }
@@ -206,28 +204,32 @@ impl Catalog {
     /// Opens each (name, path); a file that fails to open is logged and
     /// skipped so one bad file never takes the others down. Two scenes with
     /// one name are an error: a client could not tell them apart.
-    pub fn open(entries: &[(String, PathBuf)]) -> Result<Self, ServeError> {
+    pub fn open(entries: &[(String, Location)]) -> Result<Self, ServeError> {
         let catalog = Self::default();
         let mut seen = std::collections::HashSet::new();
-        for (name, path) in entries {
+        for (name, location) in entries {
             if !seen.insert(name) {
                 return Err(ServeError::DuplicateScene(name.clone()));
             }
-            if let Err(e) = catalog.open_scene(name, path) {
+            if let Err(e) = catalog.open_scene(name, location) {
                 tracing::warn!(scene = %name, "skipping scene: {e}");
             }
         }
         Ok(catalog)
     }
 
-    /// Opens `path` as scene `name`, in place of any version served now
-    /// (sessions open on that one finish on it).
-    pub fn open_scene(&self, name: &str, path: &Path) -> Result<Arc<ServedScene>, StoreError> {
+    /// Opens the scene at `location` as scene `name`, in place of any
+    /// version served now (sessions open on that one finish on it).
+    pub fn open_scene(
+        &self,
+        name: &str,
+        location: &Location,
+    ) -> Result<Arc<ServedScene>, StoreError> {
         let id = self.next_id.fetch_add(1, Ordering::Relaxed);
-        let scene = Arc::new(ServedScene::open(id, name, path)?);
+        let scene = Arc::new(ServedScene::open(id, name, location)?);
         tracing::info!(
             scene = %name,
-            path = %path.display(),
+            %location,
             pages = scene.page_count(),
             nodes = scene.source.header().nodes,
             "serving scene"
@@ -279,25 +281,4 @@ impl Catalog {
     pub fn is_empty(&self) -> bool {
         self.len() == 0
     }
-}
-
-/// The `*.ff` files directly in `dir`, named by file stem, sorted by name.
-pub fn scan_dir(dir: &Path) -> Result<Vec<(String, PathBuf)>, ServeError> {
-    let io = |error| ServeError::ScenesDir {
-        path: dir.to_owned(),
-        error,
-    };
-    let mut out = Vec::new();
-    for entry in std::fs::read_dir(dir).map_err(io)? {
-        let path = entry.map_err(io)?.path();
-        if path.extension().and_then(|e| e.to_str()) != Some(SCENE_EXTENSION) || !path.is_file() {
-            continue;
-        }
-        match path.file_stem().and_then(|s| s.to_str()) {
-            Some(stem) if !stem.is_empty() => out.push((stem.to_owned(), path.clone())),
-            _ => tracing::warn!(path = %path.display(), "skipping scene: name is not UTF-8"),
-        }
-    }
-    out.sort();
-    Ok(out)
 }

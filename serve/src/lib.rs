@@ -32,6 +32,7 @@ pub mod limits;
 mod listen;
 pub mod lookahead;
 pub mod metrics;
+pub mod origin;
 mod pages;
 pub mod prefetch;
 pub mod rescan;
@@ -58,8 +59,9 @@ use self::catalog::Catalog;
 use self::limits::Limits;
 use self::lookahead::Lookahead;
 use self::metrics::{Metrics, MetricsSnapshot};
+use self::origin::Origin;
 use self::prefetch::Prefetcher;
-use self::rescan::{DEFAULT_RESCAN_INTERVAL, Origin, Rescanner};
+use self::rescan::{DEFAULT_RESCAN_INTERVAL, Rescanner};
 use self::tls::TlsFiles;
 
 /// The page cache's default bound.
@@ -77,6 +79,8 @@ pub enum ServeError {
         path: PathBuf,
         error: std::io::Error,
     },
+    #[error("object store: {0}")]
+    Store(String),
     #[error("two scenes are named {0:?}")]
     DuplicateScene(String),
     #[error("cannot listen on {addr}: {error}")]
@@ -96,7 +100,7 @@ pub enum ServeError {
 #[derive(Debug, Clone)]
 pub struct ServerConfig {
     /// A folder (every `*.ff` file directly in it is a scene named by its
-    /// stem) or a list of files.
+    /// stem), a list of files, or a prefix in object storage.
     pub scenes: Origin,
     /// Port 0 picks a free port; [`RunningServer::local_addr`] says which.
     pub listen: SocketAddr,
@@ -127,7 +131,12 @@ impl ServerConfig {
         Self::with_origin(Origin::Files(scenes), listen)
     }
 
-    fn with_origin(scenes: Origin, listen: SocketAddr) -> Self {
+    /// Serves the `*.ff` objects under a bucket's prefix.
+    pub fn objects(bucket: Arc<farfield_objects::Bucket>, listen: SocketAddr) -> Self {
+        Self::with_origin(Origin::Objects(bucket), listen)
+    }
+
+    pub fn with_origin(scenes: Origin, listen: SocketAddr) -> Self {
         Self {
             scenes,
             listen,
@@ -209,15 +218,34 @@ pub async fn start(config: ServerConfig) -> Result<RunningServer, ServeError> {
         .map_err(ServeError::Tls)?;
     let mut limits = limits.sane();
     fit_open_files(&mut limits);
-    let scenes = match &origin {
-        Origin::Folder(dir) => catalog::scan_dir(dir)?,
-        Origin::Files(files) => files.clone(),
-    };
-    let catalog = Arc::new(Catalog::open(&scenes)?);
+    // Blocking (files are read, a store is asked), so off the runtime.
+    let first = origin.clone();
+    let catalog = tokio::task::spawn_blocking(move || {
+        let listing = match first.listing() {
+            // A replica may start before its store answers: it serves
+            // what the watcher finds once it does.
+            Err(ServeError::Store(e)) => {
+                tracing::warn!("the scenes' store cannot be listed yet: {e}");
+                Vec::new()
+            }
+            listing => listing?,
+        };
+        let entries: Vec<_> = listing.into_iter().map(|e| (e.name, e.location)).collect();
+        Catalog::open(&entries)
+    })
+    .await
+    .map_err(|e| ServeError::Task(e.to_string()))??;
+    let catalog = Arc::new(catalog);
     if catalog.is_empty() {
         tracing::warn!("no scenes to serve");
     }
-    let metrics = Arc::new(Metrics::default());
+    let metrics = Arc::new(Metrics {
+        store: match &origin {
+            Origin::Objects(bucket) => bucket.stats_handle(),
+            _ => Default::default(),
+        },
+        ..Metrics::default()
+    });
     metrics
         .scenes
         .store(catalog.len() as u64, Ordering::Relaxed);

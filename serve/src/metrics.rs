@@ -8,17 +8,11 @@
 
 use std::fmt::Write as _;
 use std::sync::atomic::{AtomicI64, AtomicU64, Ordering};
-use std::time::Duration;
 
 use serde::Serialize;
 
 use crate::limits::Limit;
-
-/// Upper bounds of the latency buckets, in seconds (`+Inf` is implicit).
-pub const LATENCY_BUCKETS_S: [f64; 16] = [
-    0.0001, 0.00025, 0.0005, 0.001, 0.0025, 0.005, 0.01, 0.025, 0.05, 0.1, 0.25, 0.5, 1.0, 2.5,
-    5.0, 10.0,
-];
+pub use farfield_store::histogram::{Histogram, LATENCY_BUCKETS_S, RemoteStats};
 
 /// Every counter the server keeps; shared by all connections.
 #[derive(Debug, Default)]
@@ -57,47 +51,9 @@ pub struct Metrics {
     /// into it.
     pub limit_hits: [AtomicU64; Limit::ALL.len()],
     pub latency: Histogram,
-}
-
-/// A fixed-bucket histogram of durations (non-cumulative counts per bucket;
-/// rendering accumulates).
-#[derive(Debug, Default)]
-pub struct Histogram {
-    buckets: [AtomicU64; LATENCY_BUCKETS_S.len() + 1],
-    sum_us: AtomicU64,
-    count: AtomicU64,
-}
-
-impl Histogram {
-    pub fn observe(&self, d: Duration) {
-        let s = d.as_secs_f64();
-        let i = LATENCY_BUCKETS_S
-            .iter()
-            .position(|&b| s <= b)
-            .unwrap_or(LATENCY_BUCKETS_S.len());
-        self.buckets[i].fetch_add(1, Ordering::Relaxed);
-        let us = u64::try_from(d.as_micros()).unwrap_or(u64::MAX);
-        self.sum_us.fetch_add(us, Ordering::Relaxed);
-        self.count.fetch_add(1, Ordering::Relaxed);
-    }
-
-    /// Cumulative counts per bucket (the last is `+Inf`), sum in seconds, count.
-    pub fn cumulative(&self) -> (Vec<u64>, f64, u64) {
-        let mut acc = 0;
-        let counts = self
-            .buckets
-            .iter()
-            .map(|b| {
-                acc += b.load(Ordering::Relaxed);
-                acc
-            })
-            .collect();
-        (
-            counts,
-            self.sum_us.load(Ordering::Relaxed) as f64 * 1e-6,
-            self.count.load(Ordering::Relaxed),
-        )
-    }
+    /// Requests to the object store the scenes are in, when they are
+    /// (shared with the store's bucket, which counts them).
+    pub store: std::sync::Arc<RemoteStats>,
 }
 
 /// The counters at one moment, for reports and tests.
@@ -130,6 +86,13 @@ pub struct MetricsSnapshot {
     pub limit_hits: std::collections::BTreeMap<&'static str, u64>,
     pub latency_count: u64,
     pub latency_sum_s: f64,
+    /// Requests to the object store, their bytes, failures (timeouts among
+    /// them), and reads failed at once while it was down.
+    pub store_requests: u64,
+    pub store_bytes: u64,
+    pub store_errors: u64,
+    pub store_timeouts: u64,
+    pub store_fast_failures: u64,
     /// The server process's resident memory (Linux; `None` elsewhere).
     pub resident_bytes: Option<u64>,
 }
@@ -203,6 +166,11 @@ impl Metrics {
                 .collect(),
             latency_count,
             latency_sum_s,
+            store_requests: get(&self.store.requests),
+            store_bytes: get(&self.store.bytes),
+            store_errors: get(&self.store.errors),
+            store_timeouts: get(&self.store.timeouts),
+            store_fast_failures: get(&self.store.fast_failures),
             resident_bytes: resident_bytes(),
         }
     }
@@ -350,6 +318,36 @@ impl Metrics {
             s.pages_cancelled,
         );
         metric("farfield_scenes", "gauge", "Scenes being served.", s.scenes);
+        metric(
+            "farfield_store_requests_total",
+            "counter",
+            "Requests to the object store (headers, pages, listings).",
+            s.store_requests,
+        );
+        metric(
+            "farfield_store_bytes_total",
+            "counter",
+            "Bytes the object store's range requests returned.",
+            s.store_bytes,
+        );
+        metric(
+            "farfield_store_errors_total",
+            "counter",
+            "Requests to the object store that failed or timed out.",
+            s.store_errors,
+        );
+        metric(
+            "farfield_store_timeouts_total",
+            "counter",
+            "Requests to the object store cut by their deadline.",
+            s.store_timeouts,
+        );
+        metric(
+            "farfield_store_fast_failures_total",
+            "counter",
+            "Reads refused at once while the object store was known to be down.",
+            s.store_fast_failures,
+        );
         if let Some(rss) = s.resident_bytes {
             // The name Prometheus's own process collectors use.
             metric(
@@ -368,30 +366,43 @@ impl Metrics {
         for (limit, n) in &s.limit_hits {
             let _ = writeln!(out, "{name}{{limit=\"{limit}\"}} {n}");
         }
-        let (counts, sum, count) = self.latency.cumulative();
-        let name = "farfield_request_latency_seconds";
-        let _ = writeln!(
-            out,
-            "# HELP {name} Time from a page becoming wanted to its frame being sent."
+        histogram(
+            &mut out,
+            "farfield_request_latency_seconds",
+            "Time from a page becoming wanted to its frame being sent.",
+            &self.latency,
         );
-        let _ = writeln!(out, "# TYPE {name} histogram");
-        for (bound, c) in LATENCY_BUCKETS_S.iter().zip(&counts) {
-            let _ = writeln!(out, "{name}_bucket{{le=\"{bound}\"}} {c}");
-        }
-        let _ = writeln!(
-            out,
-            "{name}_bucket{{le=\"+Inf\"}} {}",
-            counts.last().copied().unwrap_or(0)
+        histogram(
+            &mut out,
+            "farfield_store_request_seconds",
+            "Time an object store request took, failed ones included.",
+            &self.store.latency,
         );
-        let _ = writeln!(out, "{name}_sum {sum}");
-        let _ = writeln!(out, "{name}_count {count}");
         out
     }
+}
+
+/// Renders `h` as a Prometheus histogram.
+fn histogram(out: &mut String, name: &str, help: &str, h: &Histogram) {
+    let (counts, sum, count) = h.cumulative();
+    let _ = writeln!(out, "# HELP {name} {help}");
+    let _ = writeln!(out, "# TYPE {name} histogram");
+    for (bound, c) in LATENCY_BUCKETS_S.iter().zip(&counts) {
+        let _ = writeln!(out, "{name}_bucket{{le=\"{bound}\"}} {c}");
+    }
+    let _ = writeln!(
+        out,
+        "{name}_bucket{{le=\"+Inf\"}} {}",
+        counts.last().copied().unwrap_or(0)
+    );
+    let _ = writeln!(out, "{name}_sum {sum}");
+    let _ = writeln!(out, "{name}_count {count}");
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use std::time::Duration;
 
     #[test]
     fn histogram_is_cumulative_and_rendered() {

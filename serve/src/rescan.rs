@@ -1,7 +1,8 @@
-//! Keeps the catalog in step with the disk while the server runs, by
-//! polling (a stat per scene file per interval: cheap, and the same on
-//! every platform and file system, network ones included, where change
-//! notifications are unreliable).
+//! Keeps the catalog in step with the disk (or the object store) while the
+//! server runs, by polling (a stat per scene file, or one listing of a
+//! store's prefix, per interval: cheap, and the same on every platform and
+//! file system, network ones included, where change notifications are
+//! unreliable).
 //!
 //! On each pass, per scene name:
 //! - a file that appeared is served once it has looked the same on two
@@ -18,33 +19,24 @@
 //! session never waits for the next pass to stop sending a changed file.
 
 use std::collections::HashMap;
-use std::path::{Path, PathBuf};
 use std::sync::Mutex;
 use std::time::Duration;
 
-use farfield_store::FileStamp;
+use farfield_store::Stamp;
 
-use super::catalog::{Catalog, scan_dir};
+use super::catalog::Catalog;
+use super::origin::{Entry, Origin};
 
 /// How often the scenes folder is polled by default.
 pub const DEFAULT_RESCAN_INTERVAL: Duration = Duration::from_secs(1);
 
-/// Where the scenes come from.
-#[derive(Debug, Clone)]
-pub enum Origin {
-    /// Every `*.ff` file directly in a folder, named by file stem.
-    Folder(PathBuf),
-    /// A fixed list of (name, path).
-    Files(Vec<(String, PathBuf)>),
-}
-
-/// A file at a scene's path that is not (yet) served.
-#[derive(Debug, Clone, Copy, PartialEq)]
+/// A stored scene that is not (yet) served.
+#[derive(Debug, Clone, PartialEq)]
 enum Candidate {
     /// Seen once with this stamp; opened if the next pass sees it again.
-    Seen(FileStamp),
+    Seen(Stamp),
     /// Failed to open with this stamp; tried again once it changes.
-    Failed(FileStamp),
+    Failed(Stamp),
 }
 
 /// The watcher's memory between passes.
@@ -52,9 +44,9 @@ enum Candidate {
 pub struct Rescanner {
     origin: Origin,
     candidates: Mutex<HashMap<String, Candidate>>,
-    /// Whether the folder itself could not be read on the last pass (warned
+    /// Whether the origin itself could not be read on the last pass (warned
     /// once, not every pass).
-    folder_failed: Mutex<bool>,
+    origin_failed: Mutex<bool>,
 }
 
 impl Rescanner {
@@ -62,44 +54,36 @@ impl Rescanner {
         Self {
             origin,
             candidates: Mutex::new(HashMap::new()),
-            folder_failed: Mutex::new(false),
+            origin_failed: Mutex::new(false),
         }
     }
 
-    /// The (name, path) pairs there are now, or `None` when the folder
-    /// cannot be read (nothing is retired for that: it may be a blip).
-    fn listing(&self) -> Option<Vec<(String, PathBuf)>> {
-        match &self.origin {
-            Origin::Files(files) => Some(files.clone()),
-            Origin::Folder(dir) => {
-                let mut failed = self.folder_failed.lock().unwrap_or_else(|e| e.into_inner());
-                match scan_dir(dir) {
-                    Ok(listing) => {
-                        *failed = false;
-                        Some(listing)
-                    }
-                    Err(e) => {
-                        if !*failed {
-                            tracing::warn!("cannot rescan the scenes: {e}");
-                        }
-                        *failed = true;
-                        None
-                    }
+    /// What the origin holds now, or `None` when it cannot be read
+    /// (nothing is retired for that: it may be a blip).
+    fn listing(&self) -> Option<Vec<Entry>> {
+        let mut failed = self.origin_failed.lock().unwrap_or_else(|e| e.into_inner());
+        match self.origin.listing() {
+            Ok(listing) => {
+                *failed = false;
+                Some(listing)
+            }
+            Err(e) => {
+                if !*failed {
+                    tracing::warn!("cannot rescan the scenes: {e}");
                 }
+                *failed = true;
+                None
             }
         }
     }
 
-    /// One pass: brings `catalog` in step with the disk. Blocking (stats and
-    /// opens files).
+    /// One pass: brings `catalog` in step with what is stored. Blocking
+    /// (stats and opens files, or asks a store).
     pub fn pass(&self, catalog: &Catalog) {
         let Some(listing) = self.listing() else {
             return;
         };
-        let listed: HashMap<&str, &Path> = listing
-            .iter()
-            .map(|(name, path)| (name.as_str(), path.as_path()))
-            .collect();
+        let listed: HashMap<&str, &Entry> = listing.iter().map(|e| (e.name.as_str(), e)).collect();
         for scene in catalog.all() {
             if scene.is_retired() {
                 catalog.remove(&scene);
@@ -113,9 +97,9 @@ impl Rescanner {
         }
         let mut candidates = self.candidates.lock().unwrap_or_else(|e| e.into_inner());
         candidates.retain(|name, _| listed.contains_key(name.as_str()));
-        for (name, path) in listed {
-            let stamp = match std::fs::metadata(path) {
-                Ok(meta) => FileStamp::of(&meta),
+        for (name, entry) in listed {
+            let stamp = match &entry.stamp {
+                Ok(stamp) => stamp.clone(),
                 Err(e) => {
                     if let Some(scene) = catalog.get(name) {
                         scene.retire(&format!("its file cannot be read: {e}"));
@@ -126,7 +110,10 @@ impl Rescanner {
                 }
             };
             let served = catalog.get(name);
-            if served.as_ref().is_some_and(|s| s.stamp == stamp) {
+            if served
+                .as_ref()
+                .is_some_and(|s| s.stamp.same_version(&stamp))
+            {
                 candidates.remove(name);
                 continue;
             }
@@ -138,18 +125,24 @@ impl Rescanner {
                     continue;
                 }
             }
-            match catalog.open_scene(name, path) {
+            match catalog.open_scene(name, &entry.location) {
                 Ok(scene) => {
                     candidates.remove(name);
-                    if served.is_some() {
+                    if let Some(old) = served {
                         tracing::info!(
                             scene = %name,
                             "scene replaced: new sessions get the new version, open ones finish on theirs"
                         );
+                        // An object replaced in a store is gone: sessions
+                        // on the old version cannot finish on it (a file
+                        // renamed over keeps the old one open and whole).
+                        if matches!(old.stamp, Stamp::Object(_)) {
+                            old.retire("it was replaced in the store");
+                        }
                     }
-                    if scene.stamp != stamp {
-                        // Changed again between the stat and the open: the
-                        // next pass looks at it afresh.
+                    if !scene.stamp.same_version(&stamp) {
+                        // Changed again between the listing and the open:
+                        // the next pass looks at it afresh.
                         tracing::debug!(scene = %name, "changed while opening");
                     }
                 }

@@ -14,7 +14,10 @@
 //!   in flight is already being answered and is ignored;
 //! - when nothing is wanted and the client allowed pushes, children of
 //!   pages it asked for are offered, highest parent priority first, never
-//!   one it has, wants, or cancelled.
+//!   one it has, wants, or cancelled;
+//! - a wanted page that could not be read for now (its store is down) is
+//!   deferred: still wanted, it goes back in the queue once its retry time
+//!   has come ([`Schedule::retry_due`]), unless cancelled meanwhile.
 
 use std::cmp::Ordering;
 use std::collections::hash_map::Entry;
@@ -92,6 +95,8 @@ pub struct Schedule {
     allow_push: bool,
     push: BinaryHeap<Queued>,
     push_seen: HashSet<u32>,
+    /// Wanted pages waiting to be tried again, by page: when, and the wish.
+    deferred: HashMap<u32, (Instant, Wish)>,
 }
 
 impl Schedule {
@@ -113,6 +118,7 @@ impl Schedule {
             allow_push,
             push: BinaryHeap::new(),
             push_seen: HashSet::new(),
+            deferred: HashMap::new(),
         }
     }
 
@@ -124,9 +130,9 @@ impl Schedule {
         self.in_flight_bytes
     }
 
-    /// Pages wanted and not yet sent.
+    /// Pages wanted and not yet sent (deferred ones among them).
     pub fn queued(&self) -> usize {
-        self.wishes.len()
+        self.wishes.len() + self.deferred.len()
     }
 
     fn next_seq(&mut self) -> u64 {
@@ -149,6 +155,11 @@ impl Schedule {
     /// [`Schedule::request`] without the clamp (page 0 at infinity).
     pub fn request_raw(&mut self, page: u32, priority: f32, now: Instant) -> bool {
         if self.in_flight.contains_key(&page) {
+            return false;
+        }
+        if let Some((_, wish)) = self.deferred.get_mut(&page) {
+            // Still waiting for its retry: a new priority for when it comes.
+            wish.priority = priority;
             return false;
         }
         self.cancelled.remove(&page);
@@ -188,7 +199,7 @@ impl Schedule {
             return false;
         }
         self.cancelled.insert(page);
-        self.wishes.remove(&page).is_some()
+        self.wishes.remove(&page).is_some() | self.deferred.remove(&page).is_some()
     }
 
     /// The client has the page: its bytes leave the window.
@@ -278,6 +289,50 @@ impl Schedule {
     pub fn unsend(&mut self, page: u32) {
         self.sent.remove(&page);
         self.received(page);
+    }
+
+    /// Takes back a wanted page handed out by [`Schedule::next`] that could
+    /// not be read for now, to be queued again at `at` (with its priority
+    /// and its first wish's time, so its latency counts the wait).
+    pub fn defer(&mut self, next: &NextPage, at: Instant) {
+        self.unsend(next.page);
+        if let Some(since) = next.since {
+            let wish = Wish {
+                priority: next.priority,
+                seq: 0,
+                since,
+            };
+            self.deferred.insert(next.page, (at, wish));
+        }
+    }
+
+    /// The earliest time a deferred page is due, if one is waiting.
+    pub fn next_retry(&self) -> Option<Instant> {
+        self.deferred.values().map(|&(at, _)| at).min()
+    }
+
+    /// Queues again the deferred pages whose time has come by `now`.
+    pub fn retry_due(&mut self, now: Instant) {
+        if self.next_retry().is_none_or(|at| at > now) {
+            return;
+        }
+        let due: Vec<u32> = self
+            .deferred
+            .iter()
+            .filter(|(_, (at, _))| *at <= now)
+            .map(|(&page, _)| page)
+            .collect();
+        for page in due {
+            if let Some((_, wish)) = self.deferred.remove(&page) {
+                let seq = self.next_seq();
+                self.wishes.insert(page, Wish { seq, ..wish });
+                self.heap.push(Queued {
+                    priority: wish.priority,
+                    seq,
+                    page,
+                });
+            }
+        }
     }
 
     /// Whether `page` was ever sent on this connection.
@@ -419,5 +474,32 @@ mod tests {
         assert!(s.request(3, 1.0, Instant::now()));
         assert!(s.cancel(3), "a page of the scene is still cancelled");
         assert_eq!(s.cancelled.len(), 1);
+    }
+
+    #[test]
+    fn a_deferred_page_comes_back_when_due_unless_cancelled() {
+        let t0 = Instant::now();
+        let later = t0 + std::time::Duration::from_secs(1);
+        let mut s = Schedule::new(1 << 20, false, 100);
+        s.request(3, 2.0, t0);
+        s.request(4, 1.0, t0);
+        let next = s.next(|_| 10).unwrap();
+        assert_eq!(next.page, 3);
+        s.defer(&next, later);
+        assert_eq!(s.queued(), 2, "still wanted");
+        assert_eq!(s.in_flight_bytes(), 0);
+        assert_eq!(s.next_retry(), Some(later));
+        assert!(!s.request(3, 5.0, t0), "a new priority, not a second wish");
+        s.retry_due(t0);
+        assert_eq!(drain(&mut s), vec![4], "not due yet");
+        s.retry_due(later);
+        let again = s.next(|_| 10).unwrap();
+        assert_eq!((again.page, again.priority), (3, 5.0));
+        assert_eq!(again.since, Some(t0), "its wait counts from the first wish");
+        s.defer(&again, later);
+        assert!(s.cancel(3));
+        assert_eq!((s.queued(), s.next_retry()), (0, None));
+        s.retry_due(later);
+        assert_eq!(drain(&mut s), Vec::<u32>::new());
     }
 }

@@ -48,6 +48,10 @@ const CLOSE_TOO_BIG: u16 = 1009;
 /// ([`CLOSE_POLICY`]), so a client that asks and never reads costs a
 /// bounded amount.
 pub const MAX_OUTBOX_BYTES: usize = 1 << 20;
+/// How soon a page that could not be read for now (its store is down or
+/// slow) is tried again; the store's own back-off makes a retry against a
+/// store still down cost nothing.
+pub const RETRY_UNAVAILABLE: Duration = Duration::from_millis(500);
 
 type Sink = SplitSink<WebSocket, Message>;
 type Stream = SplitStream<WebSocket>;
@@ -115,6 +119,9 @@ struct State {
     stats: Stats,
     /// The demo session this connection is in.
     seat: Option<Seat>,
+    /// Whether the client was told that pages are unavailable for now (once
+    /// per outage: cleared when a page is served again).
+    told_unavailable: bool,
 }
 
 #[derive(Debug, Default, Clone, Copy)]
@@ -301,6 +308,7 @@ pub(crate) async fn run(
             ending: None,
             stats: Stats::default(),
             seat: None,
+            told_unavailable: false,
         }),
         mailbox: Arc::new(Mailbox::new(wake.clone())),
         wake,
@@ -713,9 +721,18 @@ fn next_action(shared: &Shared, scene: &ServedScene, shutting_down: bool) -> Act
     if let Some(frame) = shared.mailbox.take() {
         return Action::Send(frame);
     }
+    st.schedule.retry_due(Instant::now());
     match st.schedule.next(|p| scene.page_len(p).unwrap_or(0)) {
         Some(next) => Action::Page(next),
         None => Action::Wait,
+    }
+}
+
+/// Sleeps until `at`, or forever when there is no `at`.
+async fn sleep_until(at: Option<Instant>) {
+    match at {
+        Some(at) => tokio::time::sleep_until(at.into()).await,
+        None => std::future::pending().await,
     }
 }
 
@@ -748,8 +765,10 @@ async fn write_loop(
                 if let Err(end) = write(sink.flush(), &mut shutdown, stall, app).await {
                     return end;
                 }
+                let retry = shared.lock().schedule.next_retry();
                 let ping = tokio::select! {
                     () = shared.wake.notified() => false,
+                    () = sleep_until(retry) => false,
                     () = shutdown_signalled(&mut shutdown) => false,
                     _ = scene.retired() => false,
                     () = tokio::time::sleep(ping_every) => true,
@@ -787,6 +806,7 @@ async fn write_loop(
                     Ok(frame) => {
                         let page_bytes = frame.len().saturating_sub(1) as u64;
                         let mut st = shared.lock();
+                        st.told_unavailable = false;
                         st.stats.pages += 1;
                         st.stats.bytes += page_bytes;
                         if let Some(seat) = &st.seat {
@@ -811,6 +831,29 @@ async fn write_loop(
                     }
                     // Retired by the read: the next action ends the session.
                     Err(PageError::Changed(_)) => continue,
+                    // The store is down or slow: the page stays wanted and
+                    // is tried again; the client is told once per outage
+                    // (and a push is simply dropped).
+                    Err(PageError::Unavailable(why)) => {
+                        let mut st = shared.lock();
+                        if !next.pushed {
+                            st.schedule.defer(&next, Instant::now() + RETRY_UNAVAILABLE);
+                            app.metrics.queue_depth.fetch_add(1, Ordering::Relaxed);
+                        } else {
+                            st.schedule.unsend(next.page);
+                        }
+                        if std::mem::replace(&mut st.told_unavailable, true) {
+                            continue;
+                        }
+                        drop(st);
+                        Bytes::from(encode_control(&error(
+                            format!(
+                                "scene {:?}: pages are temporarily unavailable ({why}); retrying",
+                                scene.name
+                            ),
+                            false,
+                        )))
+                    }
                     Err(e) => {
                         // The cache warned once, when it found the page bad.
                         tracing::debug!(scene = %scene.name, page = next.page, "not sent: {e}");

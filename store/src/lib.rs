@@ -5,8 +5,8 @@
 //! interrupted build never leaves a half file under the target's name;
 //! [`check_target`] tells a build before it starts that it could not.
 //! [`SceneFile`] reads a file's pages with positional reads, verified on
-//! request; it is the one [`PageSource`] (the server's view of a stored
-//! scene) so far.
+//! request; it is one [`PageSource`] (the server's view of a stored
+//! scene), and [`verify`] holds what every source checks the same way.
 
 use std::fs::File;
 use std::io::{BufWriter, Write};
@@ -16,12 +16,15 @@ use farfield_protocol::FormatError;
 
 use farfield_protocol::paged_file::PagedFile;
 
+pub mod histogram;
 mod scene_file;
 mod source;
 mod stamp;
+pub mod verify;
+pub use histogram::{Histogram, RemoteStats};
 pub use scene_file::SceneFile;
 pub use source::{PageError, PageSource};
-pub use stamp::FileStamp;
+pub use stamp::{FileStamp, ObjectStamp, Stamp};
 
 /// Why a file could not be written or read. The cause is a field named
 /// `error`, printed in the message (as in the importers' `ImportError`).
@@ -34,6 +37,15 @@ pub enum StoreError {
     },
     #[error("{path}: {error}")]
     Format { path: PathBuf, error: FormatError },
+    /// A store other than the local disk (object storage) failed.
+    #[error("{location}: {message}")]
+    Remote { location: String, message: String },
+    /// A scene in a store is not a valid scene.
+    #[error("{location}: {error}")]
+    RemoteFormat {
+        location: String,
+        error: FormatError,
+    },
 }
 
 /// Checks, before a long build, that `path` can be written: its folder

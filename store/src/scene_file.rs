@@ -12,15 +12,12 @@ use std::fs::File;
 use std::path::{Path, PathBuf};
 
 use farfield_protocol::FormatError;
-use farfield_protocol::file::{FileHeader, HierarchyKind};
+use farfield_protocol::file::FileHeader;
 use farfield_protocol::hierarchy::Hierarchy;
-use farfield_protocol::page::Page;
 
 use crate::StoreError;
 use crate::stamp::FileStamp;
-
-/// How much of a file is read first to find its header's length.
-const HEADER_PROBE_BYTES: u64 = 64 << 10;
+use crate::verify::{HeaderError, read_header, verify_page};
 
 /// A paged file opened for reading.
 #[derive(Debug)]
@@ -48,31 +45,14 @@ impl SceneFile {
         };
         let file = File::open(path).map_err(io)?;
         let stamp = FileStamp::of(&file.metadata().map_err(io)?);
-        let len = stamp.len;
-        let mut header_bytes = vec![0; len.min(HEADER_PROBE_BYTES) as usize];
-        read_exact_at(&file, &mut header_bytes, 0).map_err(io)?;
-        let header = match FileHeader::decode(&header_bytes) {
-            // A directory longer than the probe: read all of it (it cannot
-            // be longer than the file, or the file is truncated).
-            Err(FormatError::Truncated {
-                what: "header",
-                needed,
-                ..
-            }) if needed <= len => {
-                header_bytes = vec![0; needed as usize];
-                read_exact_at(&file, &mut header_bytes, 0).map_err(io)?;
-                FileHeader::decode(&header_bytes).map_err(format)?
-            }
-            decoded => decoded.map_err(format)?,
-        };
-        header_bytes.truncate(FileHeader::encoded_len(header.pages.len()));
-        if header.file_len() > len {
-            return Err(format(FormatError::Truncated {
-                what: "file",
-                needed: header.file_len(),
-                have: len,
-            }));
-        }
+        let (header, header_bytes) = read_header(stamp.len, |n| {
+            let mut bytes = vec![0; n as usize];
+            read_exact_at(&file, &mut bytes, 0).map(|()| bytes)
+        })
+        .map_err(|e| match e {
+            HeaderError::Read(error) => io(error),
+            HeaderError::Format(error) => format(error),
+        })?;
         Ok(Self {
             path: path.to_owned(),
             header,
@@ -127,7 +107,7 @@ impl SceneFile {
                     message: format!("cannot be read: {error}"),
                 },
             })
-            .and_then(|()| self.verify(index, &out[start..]));
+            .and_then(|()| verify_page(&self.header, index, &out[start..]));
         if read.is_err() {
             out.truncate(start);
         }
@@ -137,23 +117,6 @@ impl SceneFile {
     /// Checks page `index`'s checksum and header.
     pub fn verify_page(&self, index: usize) -> Result<(), FormatError> {
         self.read_page_into(index, &mut Vec::new())
-    }
-
-    /// Checks `bytes`, read for page `index`.
-    fn verify(&self, index: usize, bytes: &[u8]) -> Result<(), FormatError> {
-        let page = match self.header.kind {
-            HierarchyKind::Spheres => Page::parse(bytes, index as u32, self.header.node_bytes)?,
-            HierarchyKind::Cubes | HierarchyKind::Plp | HierarchyKind::Bsp => {
-                Page::parse_with_payload(bytes, index as u32, self.header.node_bytes)?
-            }
-        };
-        if page.header.first_node != self.header.pages[index].first_node {
-            return Err(FormatError::BadPage {
-                page: index as u32,
-                message: "disagrees with the directory".into(),
-            });
-        }
-        Ok(())
     }
 
     /// Indices of pages that fail verification, with the reason.

@@ -2,9 +2,9 @@
 //!
 //! The memory server asks a source for the header once and for pages as
 //! clients need them; it never touches a file or a map itself. The one
-//! source now is [`crate::SceneFile`], a file read by positional reads; object storage
-//! is a new implementation of this trait, and nothing in the server
-//! changes for it.
+//! sources are [`crate::SceneFile`], a file read by positional reads, and
+//! (in `farfield-objects`) an object read by range requests; the server
+//! never names either.
 
 use farfield_protocol::FormatError;
 use farfield_protocol::file::FileHeader;
@@ -20,6 +20,10 @@ pub enum PageError {
     /// every check and still not fit the header clients hold).
     #[error("the scene's file changed on disk: {0}")]
     Changed(String),
+    /// The store did not answer, or not in time (a network store that is
+    /// down or slow). Nothing is known about the page: ask again later.
+    #[error("temporarily unavailable: {0}")]
+    Unavailable(String),
 }
 
 /// A scene's stored bytes: its header and its pages, verified on read.
@@ -40,6 +44,11 @@ pub trait PageSource: Send + Sync + std::fmt::Debug {
     fn read_page(&self, index: u32, out: &mut Vec<u8>) -> Result<(), PageError>;
     /// How the stored scene changed since it was opened, if it did.
     fn changed(&self) -> Option<String>;
+    /// The version opened, which the server's watcher compares with what
+    /// is stored now.
+    fn stamp(&self) -> crate::Stamp;
+    /// Where it is stored, for logs (a path, or a store's URL).
+    fn location(&self) -> String;
 }
 
 impl PageSource for crate::SceneFile {
@@ -69,5 +78,13 @@ impl PageSource for crate::SceneFile {
 
     fn changed(&self) -> Option<String> {
         crate::SceneFile::changed(self)
+    }
+
+    fn stamp(&self) -> crate::Stamp {
+        crate::Stamp::File(crate::SceneFile::stamp(self))
+    }
+
+    fn location(&self) -> String {
+        self.path.display().to_string()
     }
 }

@@ -10,6 +10,52 @@
 use std::fs::Metadata;
 use std::time::SystemTime;
 
+/// Which version of a stored scene is served: a file's [`FileStamp`], or
+/// an object's [`ObjectStamp`]. The server's watcher compares a served
+/// scene's stamp with what its listing says now.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum Stamp {
+    File(FileStamp),
+    Object(ObjectStamp),
+}
+
+impl Stamp {
+    /// Whether both name the same stored version. Objects are compared as
+    /// [`ObjectStamp::same_version`] says.
+    pub fn same_version(&self, other: &Self) -> bool {
+        match (self, other) {
+            (Self::File(a), Self::File(b)) => a == b,
+            (Self::Object(a), Self::Object(b)) => a.same_version(b),
+            _ => false,
+        }
+    }
+}
+
+/// An object's version, as a store's listing or a HEAD request gives it.
+/// Objects are never changed in place, only replaced, so a new entity tag,
+/// length or modification time is a new object.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct ObjectStamp {
+    pub len: u64,
+    pub e_tag: Option<String>,
+    /// Seconds since the Unix epoch (HTTP dates have no finer unit).
+    pub modified_s: i64,
+}
+
+impl ObjectStamp {
+    /// Whether both name the same version: same length and modification
+    /// second, and the same entity tag where both have one (some stores
+    /// list objects without theirs).
+    pub fn same_version(&self, other: &Self) -> bool {
+        self.len == other.len
+            && self.modified_s == other.modified_s
+            && match (&self.e_tag, &other.e_tag) {
+                (Some(a), Some(b)) => a == b,
+                _ => true,
+            }
+    }
+}
+
 /// A file's identity and version, as `stat` gives them.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct FileStamp {
@@ -62,6 +108,33 @@ impl FileStamp {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn an_object_listed_without_its_tag_is_the_version_opened() {
+        let opened = ObjectStamp {
+            len: 10,
+            e_tag: Some("\"abc\"".into()),
+            modified_s: 100,
+        };
+        let listed = ObjectStamp {
+            e_tag: None,
+            ..opened.clone()
+        };
+        assert!(Stamp::Object(opened.clone()).same_version(&Stamp::Object(listed.clone())));
+        let retagged = ObjectStamp {
+            e_tag: Some("\"def\"".into()),
+            ..opened.clone()
+        };
+        assert!(!opened.same_version(&retagged));
+        assert!(!opened.same_version(&ObjectStamp {
+            len: 11,
+            ..listed.clone()
+        }));
+        assert!(!opened.same_version(&ObjectStamp {
+            modified_s: 101,
+            ..listed
+        }));
+    }
 
     #[test]
     fn changes_are_named_and_sameness_is_by_inode() {

@@ -52,7 +52,32 @@ impl Progress for Bar<'_> {
 
 pub fn run(args: &BuildArgs) -> anyhow::Result<Report> {
     let params = Params::parse(&args.params).map_err(anyhow::Error::msg)?;
-    check_target(&args.out)?;
+    // Published to a store: built into a temporary file first (the store
+    // is reached before the build, so a wrong address fails at once).
+    let store = match args
+        .out
+        .to_str()
+        .filter(|o| farfield_objects::is_store_url(o))
+    {
+        Some(url) => {
+            let (bucket, url) = args.store.bucket(url, Default::default())?;
+            anyhow::ensure!(
+                !url.key.is_empty(),
+                "{url}: name the object to write (s3://bucket/key.ff)"
+            );
+            match bucket.head(&url.key) {
+                Ok(_) | Err(farfield_objects::RemoteError::NotFound(_)) => {}
+                Err(e) => anyhow::bail!("cannot reach the store: {e}"),
+            }
+            Some((bucket, url))
+        }
+        None => None,
+    };
+    let local = match &store {
+        Some(_) => std::env::temp_dir().join(format!("farfield-build-{}.ff", std::process::id())),
+        None => args.out.clone(),
+    };
+    check_target(&local)?;
     let progress = if args.json || !std::io::stderr().is_terminal() {
         ProgressBar::hidden()
     } else {
@@ -131,7 +156,12 @@ pub fn run(args: &BuildArgs) -> anyhow::Result<Report> {
     let seconds_build = build_started.elapsed().as_secs_f64();
     progress.set_style(spinner_style());
     progress.set_message(format!("writing {}", args.out.display()));
-    let bytes = write_atomic(&args.out, &file)?;
+    let mut bytes = write_atomic(&local, &file)?;
+    if let Some((bucket, url)) = &store {
+        let published = farfield_objects::publish(&local, bucket, &url.key);
+        let _ = std::fs::remove_file(&local);
+        bytes = published?;
+    }
     progress.finish_and_clear();
     let seconds = started.elapsed().as_secs_f64();
     let h = &file.header;

@@ -6,6 +6,7 @@
 mod build;
 mod export;
 mod inspect;
+mod publish;
 mod serve;
 
 use std::net::SocketAddr;
@@ -39,6 +40,58 @@ pub enum Command {
     /// `OUT/NAME/pages/N`, exactly as stored), for a static file server:
     /// what the load test's `--static` fetches, to compare with this server.
     Export(ExportArgs),
+    /// Upload a built scene file to S3-compatible object storage
+    /// (`s3://bucket/key.ff`), checked first and stored in one multipart
+    /// upload, so a reader never sees half of it.
+    Publish(PublishArgs),
+}
+
+#[derive(Debug, clap::Args)]
+pub struct PublishArgs {
+    /// The scene file.
+    pub file: PathBuf,
+    /// Where to put it: `s3://bucket/key.ff`.
+    pub to: String,
+    #[command(flatten)]
+    pub store: StoreArgs,
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// How to reach an object store. Its endpoint, region and credentials
+/// come from the environment, as the AWS tools read them:
+/// `AWS_ENDPOINT_URL` (an `http://` one is allowed plain), `AWS_REGION`,
+/// `AWS_ACCESS_KEY_ID`, `AWS_SECRET_ACCESS_KEY`.
+#[derive(Debug, Clone, clap::Args)]
+pub struct StoreArgs {
+    /// Seconds one request to the object store may take before it counts
+    /// as failed.
+    #[arg(long, default_value_t = 10.0, value_parser = seconds)]
+    pub store_timeout: f64,
+}
+
+impl StoreArgs {
+    /// The bucket of `url` (`s3://bucket/...`), and the key or prefix.
+    pub fn bucket(
+        &self,
+        url: &str,
+        stats: std::sync::Arc<farfield_store::RemoteStats>,
+    ) -> anyhow::Result<(
+        std::sync::Arc<farfield_objects::Bucket>,
+        farfield_objects::StoreUrl,
+    )> {
+        let url = farfield_objects::StoreUrl::parse(url).map_err(anyhow::Error::msg)?;
+        anyhow::ensure!(
+            self.store_timeout > 0.0,
+            "--store-timeout must be more than 0 seconds"
+        );
+        let options = farfield_objects::BucketOptions {
+            timeout: Duration::from_secs_f64(self.store_timeout),
+            ..Default::default()
+        };
+        let bucket = farfield_objects::Bucket::open(&url, &options, stats)?;
+        Ok((std::sync::Arc::new(bucket), url))
+    }
 }
 
 #[derive(Debug, clap::Args)]
@@ -60,9 +113,12 @@ pub struct BuildArgs {
     /// Input files (.obj .ply .off .las .laz .pdb) or generated scenes (gen:island, gen:tree).
     #[arg(required = true)]
     pub inputs: Vec<String>,
-    /// The file to write (written to a temporary file, then renamed).
+    /// The file to write (written to a temporary file, then renamed), or
+    /// `s3://bucket/key.ff` to publish it to object storage.
     #[arg(long)]
     pub out: PathBuf,
+    #[command(flatten)]
+    pub store: StoreArgs,
     /// Generator parameters, `key=value` (e.g. trees=64, seed=3).
     #[arg(long = "param", value_name = "KEY=VALUE")]
     pub params: Vec<String>,
@@ -135,9 +191,13 @@ pub struct InspectArgs {
 
 #[derive(Debug, clap::Args)]
 pub struct ServeArgs {
-    /// Folder of scene files (`*.ff`; each is served under its file stem).
+    /// Folder of scene files (`*.ff`; each is served under its file stem),
+    /// or `s3://bucket/prefix`: the `*.ff` objects under a prefix in
+    /// S3-compatible object storage, read by range requests.
     #[arg(long)]
-    pub scenes: PathBuf,
+    pub scenes: String,
+    #[command(flatten)]
+    pub store: StoreArgs,
     /// Address to listen on (port 0 picks a free port; the first line of
     /// output says which).
     #[arg(long, default_value = "127.0.0.1:7878")]
@@ -295,6 +355,7 @@ pub fn run(cli: Cli) -> anyhow::Result<Report> {
         ),
         Command::Serve(args) => serve::run(&args),
         Command::Export(args) => export::run(&args),
+        Command::Publish(args) => publish::run(&args),
     }
 }
 

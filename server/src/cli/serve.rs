@@ -14,10 +14,17 @@ use serde_json::json;
 use super::{Report, ServeArgs};
 use anyhow::Context as _;
 use farfield_serve::access::Access;
+use farfield_serve::origin::Origin;
 use farfield_serve::tls::TlsFiles;
 use farfield_serve::{ServerConfig, start};
 
 pub fn run(args: &ServeArgs) -> anyhow::Result<Report> {
+    let origin = if farfield_objects::is_store_url(&args.scenes) {
+        let (bucket, _) = args.store.bucket(&args.scenes, Default::default())?;
+        Origin::Objects(bucket)
+    } else {
+        Origin::Folder(args.scenes.clone().into())
+    };
     let runtime = tokio::runtime::Builder::new_multi_thread()
         .enable_all()
         .thread_name("farfield-serve")
@@ -39,7 +46,7 @@ pub fn run(args: &ServeArgs) -> anyhow::Result<Report> {
                 _ => None,
             },
             web: args.web.clone(),
-            ..ServerConfig::new(&args.scenes, args.listen)
+            ..ServerConfig::with_origin(origin, args.listen)
         })
         .await?;
         {
@@ -66,7 +73,7 @@ pub fn run(args: &ServeArgs) -> anyhow::Result<Report> {
         snapshot.corrupt_pages,
     );
     Ok(Report {
-        json: json!({ "scenes_dir": args.scenes, "metrics": snapshot }),
+        json: json!({ "scenes": args.scenes, "metrics": snapshot }),
         text,
         exit_code: 0,
         as_json: args.json,

@@ -298,6 +298,17 @@ impl ChildServer {
     /// As [`ChildServer::start`], inside network namespace `netns` (run
     /// through `ip netns exec`) when one is given.
     pub(crate) fn start_in(netns: Option<&str>, dir: &Path, extra_args: &str) -> Self {
+        Self::start_with(netns, dir.as_os_str(), extra_args, &[])
+    }
+
+    /// As [`ChildServer::start`] for `scenes` (a folder, or an `s3://`
+    /// prefix), with `envs` added to its environment.
+    pub(crate) fn start_with(
+        netns: Option<&str>,
+        scenes: &std::ffi::OsStr,
+        extra_args: &str,
+        envs: &[(&'static str, String)],
+    ) -> Self {
         use std::io::{BufRead, BufReader};
         use std::process::{Command, Stdio};
         let exe = std::env::current_exe().expect("test binary");
@@ -311,8 +322,9 @@ impl ChildServer {
         };
         let mut child = command
             .args(["serve::serve_cli_child", "--exact", "--nocapture"])
-            .env("FARFIELD_SERVE_CHILD_DIR", dir)
+            .env("FARFIELD_SERVE_CHILD_DIR", scenes)
             .env("FARFIELD_SERVE_CHILD_ARGS", extra_args)
+            .envs(envs.iter().map(|(k, v)| (k, v)))
             .stdout(Stdio::piped())
             .stderr(Stdio::null())
             .spawn()

@@ -1,0 +1,123 @@
+//! [`ObjectScene`]: a scene stored as one object, read by range requests.
+
+use std::sync::Arc;
+
+use farfield_protocol::FormatError;
+use farfield_protocol::file::FileHeader;
+use farfield_store::verify::{HeaderError, read_header, verify_page};
+use farfield_store::{ObjectStamp, PageError, PageSource, Stamp, StoreError};
+
+use crate::{Bucket, RemoteError};
+
+/// A scene in object storage: its header and directory read once, at
+/// open, and each page read by one range request when asked for and
+/// checked as a file's page is. Every read names the version opened (its
+/// entity tag), so a scene replaced in the store is noticed by the first
+/// read after it, never mixed with the old one.
+#[derive(Debug)]
+pub struct ObjectScene {
+    bucket: Arc<Bucket>,
+    key: String,
+    header: FileHeader,
+    header_bytes: Vec<u8>,
+    stamp: ObjectStamp,
+}
+
+impl ObjectScene {
+    /// Opens object `key` of `bucket`: its size and version, then its
+    /// header (one range request, two for a long directory).
+    pub fn open(bucket: Arc<Bucket>, key: &str) -> Result<Self, StoreError> {
+        let location = format!("s3://{}/{key}", bucket.url().bucket);
+        let remote = |e: RemoteError| StoreError::Remote {
+            location: location.clone(),
+            message: e.to_string(),
+        };
+        let stamp = bucket.head(key).map_err(remote)?;
+        let e_tag = stamp.e_tag.as_deref();
+        let (header, header_bytes) = read_header(stamp.len, |n| {
+            bucket.get_range(key, 0..n, e_tag).map(|b| b.to_vec())
+        })
+        .map_err(|e| match e {
+            HeaderError::Read(e) => remote(e),
+            HeaderError::Format(error) => StoreError::RemoteFormat {
+                location: location.clone(),
+                error,
+            },
+        })?;
+        Ok(Self {
+            bucket,
+            key: key.to_owned(),
+            header,
+            header_bytes,
+            stamp,
+        })
+    }
+
+    /// The object's key in its bucket.
+    pub fn key(&self) -> &str {
+        &self.key
+    }
+}
+
+impl PageSource for ObjectScene {
+    fn header(&self) -> &FileHeader {
+        &self.header
+    }
+
+    fn header_bytes(&self) -> &[u8] {
+        &self.header_bytes
+    }
+
+    fn stored_len(&self) -> u64 {
+        self.stamp.len
+    }
+
+    fn read_page(&self, index: u32, out: &mut Vec<u8>) -> Result<(), PageError> {
+        let entry = *self
+            .header
+            .pages
+            .get(index as usize)
+            .ok_or(FormatError::BadPage {
+                page: index,
+                message: "outside the file".into(),
+            })?;
+        let range = entry.offset..entry.offset + u64::from(entry.length);
+        let bytes = self
+            .bucket
+            .get_range(&self.key, range, self.stamp.e_tag.as_deref())
+            .map_err(|e| match e {
+                RemoteError::NotFound(_) => {
+                    PageError::Changed("it was deleted from the store".into())
+                }
+                RemoteError::Changed(_) => {
+                    PageError::Changed("it was replaced in the store".into())
+                }
+                RemoteError::Unavailable(why) => PageError::Unavailable(why),
+            })?;
+        if bytes.len() != entry.length as usize {
+            return Err(PageError::Format(FormatError::Truncated {
+                what: "page",
+                needed: u64::from(entry.length),
+                have: bytes.len() as u64,
+            }));
+        }
+        verify_page(&self.header, index as usize, &bytes)?;
+        out.extend_from_slice(&bytes);
+        Ok(())
+    }
+
+    /// Always `None`: an object is never changed in place, only replaced,
+    /// which the next read (by its entity tag) or the server's listing
+    /// notices.
+    fn changed(&self) -> Option<String> {
+        None
+    }
+
+    fn stamp(&self) -> Stamp {
+        Stamp::Object(self.stamp.clone())
+    }
+
+    fn location(&self) -> String {
+        format!("s3://{}/{}", self.bucket.url().bucket, self.key)
+    }
+}

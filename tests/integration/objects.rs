@@ -1,0 +1,240 @@
+//! Scenes in S3-compatible object storage (issue 23), against a real store
+//! on loopback (`s3s-fs`, see [`crate::s3`]): built straight into the store
+//! and served from it with the local file's image; a page damaged in the
+//! store refused by its checksum; and the store stopped and started again
+//! while a client streams, which then gets every page right.
+
+use std::net::SocketAddr;
+use std::path::Path;
+use std::time::Duration;
+
+use farfield_protocol::file::FileHeader;
+use farfield_protocol::messages::ServerMessage;
+use farfield_render::headless_or_skip;
+use farfield_serve::{RunningServer, ServerConfig, start};
+use farfield_store::SceneFile;
+use farfield_tests::scratch;
+
+use crate::s3::S3Store;
+use crate::serve::support::{Client, In, eventually, http_get, metric};
+use crate::streaming::runtime;
+
+const ISLAND: [&str; 4] = ["--param", "size=96", "--param", "trees=3"];
+const SIZE: &str = "160x120";
+
+fn any_port() -> SocketAddr {
+    SocketAddr::from(([127, 0, 0, 1], 0))
+}
+
+/// Runs the server's command line in a child process (this test binary,
+/// running [`server_cli_child`]) whose environment names the store, as a
+/// user's shell would; fails the test if it fails.
+fn cli_in_child(store: &S3Store, args: &[&str]) -> String {
+    let out = std::process::Command::new(std::env::current_exe().expect("test binary"))
+        .args(["objects::server_cli_child", "--exact", "--nocapture"])
+        .env("FARFIELD_CLI_CHILD_ARGS", args.join("\n"))
+        .envs(store.env())
+        .output()
+        .expect("run the child");
+    let stdout = String::from_utf8_lossy(&out.stdout).into_owned();
+    assert!(
+        out.status.success(),
+        "farfield-server {args:?} failed:\n{stdout}\n{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    stdout
+}
+
+/// The child half of [`cli_in_child`]: does nothing unless started by it.
+#[test]
+fn server_cli_child() {
+    let Ok(args) = std::env::var("FARFIELD_CLI_CHILD_ARGS") else {
+        return;
+    };
+    let args: Vec<&str> = args.lines().collect();
+    let report = crate::cli(&args).expect("farfield-server");
+    println!("{}", report.json);
+}
+
+/// Renders `scene` from `server` at the 1-pixel threshold.
+fn render(server: &RunningServer, scene: &str, out: &Path) -> (u32, u32, Vec<u8>) {
+    let url = format!("http://{}", server.local_addr());
+    crate::loadtest::cli(&[
+        "render",
+        "--server",
+        &url,
+        "--scene",
+        scene,
+        "--orbit",
+        "azimuth=30,elevation=25,distance=1.6",
+        "--threshold",
+        "1",
+        "--size",
+        SIZE,
+        "--out",
+        out.to_str().unwrap(),
+    ])
+    .expect("render");
+    farfield_image::read_png(out).expect("png")
+}
+
+#[test]
+fn a_scene_built_into_a_store_renders_as_the_local_file_and_a_damaged_page_is_refused() {
+    let dir = scratch("objects-publish");
+    let Some(store) = S3Store::start_or_skip(&dir.join("store"), &["scenes"]) else {
+        return;
+    };
+    let local_dir = dir.join("local");
+    std::fs::create_dir_all(&local_dir).unwrap();
+    let local = local_dir.join("island.ff");
+    let mut build = vec!["build", "gen:island"];
+    build.extend(ISLAND);
+    crate::cli(&[build.as_slice(), &["--out", local.to_str().unwrap()]].concat()).expect("build");
+    // Straight into the store, its address from the environment.
+    cli_in_child(
+        &store,
+        &[build.as_slice(), &["--out", "s3://scenes/island.ff"]].concat(),
+    );
+    let stored = store.object_file("scenes", "island.ff");
+    assert!(
+        std::fs::read(&stored).unwrap() == std::fs::read(&local).unwrap(),
+        "the store holds other bytes than the local build"
+    );
+
+    let rt = runtime();
+    let bucket = store.bucket("s3://scenes", Duration::from_secs(5));
+    let remote = rt
+        .block_on(start(ServerConfig {
+            rescan_interval: Duration::from_millis(100),
+            ..ServerConfig::objects(bucket, any_port())
+        }))
+        .expect("server over the store");
+    let nearby = rt
+        .block_on(start(ServerConfig::new(&local_dir, any_port())))
+        .expect("server over the folder");
+    let (status, listing) = rt.block_on(http_get(remote.local_addr(), "/scenes"));
+    assert_eq!(status, 200);
+    assert!(listing.contains("\"island\""), "{listing}");
+
+    if headless_or_skip(160, 120).unwrap().is_some() {
+        let from_store = render(&remote, "island", &dir.join("store.png"));
+        let from_file = render(&nearby, "island", &dir.join("file.png"));
+        assert!(
+            from_store == from_file,
+            "the scene from the store draws another image than the file"
+        );
+    }
+    let m = remote.metrics();
+    assert!(m.store_requests > 2, "{m:?}");
+    assert!(m.store_bytes > 0 && m.store_errors == 0, "{m:?}");
+    let (_, text) = rt.block_on(http_get(remote.local_addr(), "/metrics"));
+    assert!(metric(&text, "farfield_store_requests_total") >= m.store_requests);
+    assert!(metric(&text, "farfield_store_request_seconds_count") > 0);
+
+    // A copy damaged in the store, after its upload: one byte of page 1.
+    let bytes = std::fs::read(&local).unwrap();
+    let header = FileHeader::decode(&bytes).unwrap();
+    let page = 1u32;
+    let entry = header.pages[page as usize];
+    let mut damaged = bytes.clone();
+    damaged[(entry.offset + u64::from(entry.length) / 2) as usize] ^= 0x5a;
+    std::fs::write(store.object_file("scenes", "bad.ff"), &damaged).unwrap();
+    rt.block_on(async {
+        let addr = remote.local_addr();
+        eventually("the damaged copy is listed", || {
+            remote.metrics().scenes == 2
+        })
+        .await;
+        let (mut client, _, _) = Client::open(addr, "bad", 1 << 20, false).await;
+        client.request(&[(page, 1.0)]).await;
+        match client.recv().await {
+            In::Control(ServerMessage::PageUnavailable { page: p, reason }) => {
+                assert_eq!(p, page);
+                assert!(
+                    reason.contains("checksum") || reason.contains("page"),
+                    "{reason}"
+                );
+            }
+            other => panic!("expected the page refused, got {other:?}"),
+        }
+    });
+    // Found by the client's read or by read-ahead (both, when they race).
+    let corrupt = remote.metrics().corrupt_pages;
+    assert!(
+        (1..=2).contains(&corrupt),
+        "{corrupt} corrupt pages counted"
+    );
+}
+
+#[test]
+fn the_store_stopped_and_started_while_a_client_streams_then_every_page_arrives_right() {
+    let dir = scratch("objects-outage");
+    let Some(mut store) = S3Store::start_or_skip(&dir.join("store"), &["scenes"]) else {
+        return;
+    };
+    let local = dir.join("island.ff");
+    let mut build = vec!["build", "gen:island"];
+    build.extend(ISLAND);
+    crate::cli(&[build.as_slice(), &["--out", local.to_str().unwrap()]].concat()).expect("build");
+    let bucket = store.bucket("s3://scenes", Duration::from_secs(2));
+    farfield_objects::publish(&local, &bucket, "island.ff").expect("publish");
+    let file = SceneFile::open(&local).unwrap();
+    let pages = file.header.pages.len() as u32;
+    assert!(pages > 4, "{pages} pages");
+
+    let rt = runtime();
+    // No page cache (none fits), so every page comes from the store, and
+    // read-ahead cannot have fetched them before the outage.
+    let server = rt
+        .block_on(start(ServerConfig {
+            cache_bytes: 1,
+            ..ServerConfig::objects(bucket, any_port())
+        }))
+        .expect("server over the store");
+    rt.block_on(async {
+        let (mut client, header, page0) =
+            Client::open(server.local_addr(), "island", 1 << 20, false).await;
+        assert_eq!(header, file.header_bytes());
+        let mut want = Vec::new();
+        file.read_page_into(0, &mut want).unwrap();
+        assert!(page0 == want, "page 0 differs from the file's");
+
+        store.stop();
+        let wishes: Vec<(u32, f32)> = (1..pages).map(|p| (p, (pages - p) as f32)).collect();
+        client.request(&wishes).await;
+        // Told once that pages are unavailable for now; no page comes.
+        match client.recv().await {
+            In::Control(ServerMessage::Error { message, fatal }) => {
+                assert!(!fatal, "{message}");
+                assert!(message.contains("temporarily unavailable"), "{message}");
+            }
+            In::Page(index, _) => panic!("page {index} sent while the store is down"),
+            other => panic!("expected the outage told, got {other:?}"),
+        }
+        let quiet = client.recv_within(Duration::from_millis(1500)).await;
+        assert!(quiet.is_none(), "while the store is down: {quiet:?}");
+        let m = server.metrics();
+        assert!(m.store_errors > 0, "{m:?}");
+        assert!(
+            m.store_fast_failures > 0,
+            "a store known down is not asked every time: {m:?}"
+        );
+
+        let port = store.port;
+        store.start_on(port);
+        let mut got = std::collections::BTreeSet::new();
+        while got.len() < (pages - 1) as usize {
+            match client.recv().await {
+                In::Page(index, bytes) => {
+                    let mut want = Vec::new();
+                    file.read_page_into(index as usize, &mut want).unwrap();
+                    assert!(bytes == want, "page {index} differs from the file's");
+                    assert!(got.insert(index), "page {index} sent twice");
+                    client.ack([index]).await;
+                }
+                other => panic!("expected pages once the store is back, got {other:?}"),
+            }
+        }
+    });
+    assert_eq!(server.metrics().corrupt_pages, 0);
+}
