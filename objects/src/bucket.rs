@@ -22,6 +22,9 @@ const SCENE_EXTENSION: &str = ".ff";
 /// (with a warning), so a prefix of millions of objects costs bounded
 /// memory per listing.
 pub const MAX_LISTED: usize = 10_000;
+/// The default bound on one coalesced range request: a request costs a
+/// round trip (milliseconds to a remote store), 4 MiB a few more at most.
+pub const DEFAULT_COALESCE_BYTES: u64 = 4 << 20;
 /// How long a store that failed is left alone before it is tried again,
 /// first and at most: reads in between fail at once.
 const FIRST_BACKOFF: Duration = Duration::from_millis(250);
@@ -39,6 +42,9 @@ pub struct BucketOptions {
     /// Credentials, in place of `AWS_ACCESS_KEY_ID` and
     /// `AWS_SECRET_ACCESS_KEY`.
     pub credentials: Option<(String, String)>,
+    /// Neighbouring pages are read in one range request while their span
+    /// is at most this many bytes (0: every page alone).
+    pub coalesce_bytes: u64,
 }
 
 impl Default for BucketOptions {
@@ -47,6 +53,7 @@ impl Default for BucketOptions {
             timeout: Duration::from_secs(10),
             endpoint: None,
             credentials: None,
+            coalesce_bytes: DEFAULT_COALESCE_BYTES,
         }
     }
 }
@@ -91,6 +98,7 @@ pub struct Bucket {
     /// (in an `Option` only so that `Drop` can take it).
     runtime: Option<tokio::runtime::Runtime>,
     timeout: Duration,
+    coalesce_bytes: u64,
     stats: Arc<RemoteStats>,
     health: Mutex<Health>,
 }
@@ -162,6 +170,7 @@ impl Bucket {
             store: Arc::new(store),
             runtime: Some(runtime),
             timeout: options.timeout,
+            coalesce_bytes: options.coalesce_bytes,
             stats,
             health: Mutex::new(Health::default()),
         })
@@ -170,6 +179,11 @@ impl Bucket {
     /// The bucket and prefix.
     pub fn url(&self) -> &StoreUrl {
         &self.url
+    }
+
+    /// The largest span read in one request for neighbouring pages.
+    pub fn coalesce_bytes(&self) -> u64 {
+        self.coalesce_bytes
     }
 
     /// What this bucket's requests did (shared with whoever reports it).

@@ -22,7 +22,7 @@ mod publish;
 mod scene;
 mod url;
 
-pub use bucket::{Bucket, BucketOptions, Listed, RemoteError};
+pub use bucket::{Bucket, BucketOptions, DEFAULT_COALESCE_BYTES, Listed, RemoteError};
 pub use publish::publish;
 pub use scene::ObjectScene;
 pub use url::StoreUrl;

@@ -1,11 +1,13 @@
 //! [`ObjectScene`]: a scene stored as one object, read by range requests.
 
+use std::ops::Range;
 use std::sync::Arc;
 
+use bytes::Bytes;
 use farfield_protocol::FormatError;
 use farfield_protocol::file::FileHeader;
 use farfield_store::verify::{HeaderError, read_header, verify_page};
-use farfield_store::{ObjectStamp, PageError, PageSource, Stamp, StoreError};
+use farfield_store::{ObjectStamp, PageError, PageSource, Stamp, StoreError, read_each};
 
 use crate::{Bucket, RemoteError};
 
@@ -57,6 +59,21 @@ impl ObjectScene {
     pub fn key(&self) -> &str {
         &self.key
     }
+
+    /// Bytes `range` of the version opened.
+    fn get(&self, range: Range<u64>) -> Result<Bytes, PageError> {
+        self.bucket
+            .get_range(&self.key, range, self.stamp.e_tag.as_deref())
+            .map_err(|e| match e {
+                RemoteError::NotFound(_) => {
+                    PageError::Changed("it was deleted from the store".into())
+                }
+                RemoteError::Changed(_) => {
+                    PageError::Changed("it was replaced in the store".into())
+                }
+                RemoteError::Unavailable(why) => PageError::Unavailable(why),
+            })
+    }
 }
 
 impl PageSource for ObjectScene {
@@ -104,6 +121,47 @@ impl PageSource for ObjectScene {
         verify_page(&self.header, index as usize, &bytes)?;
         out.extend_from_slice(&bytes);
         Ok(())
+    }
+
+    /// Neighbouring pages in one range request when their span is within
+    /// the bucket's coalescing limit (read-ahead asks for a page's
+    /// children, which lie side by side), else one request each.
+    fn read_pages(&self, pages: Range<u32>) -> Vec<Result<Vec<u8>, PageError>> {
+        let entries = match self
+            .header
+            .pages
+            .get(pages.start as usize..pages.end as usize)
+        {
+            Some(entries) if entries.len() > 1 => entries,
+            _ => return read_each(self, pages),
+        };
+        let (first, last) = (entries[0], entries[entries.len() - 1]);
+        let end = last.offset + u64::from(last.length);
+        let side_by_side = entries
+            .windows(2)
+            .all(|w| w[0].offset + u64::from(w[0].length) == w[1].offset);
+        if !side_by_side || end - first.offset > self.bucket.coalesce_bytes() {
+            return read_each(self, pages);
+        }
+        let span = match self.get(first.offset..end) {
+            Ok(span) => span,
+            Err(e) => return vec![Err(e); entries.len()],
+        };
+        pages
+            .zip(entries)
+            .map(|(index, entry)| {
+                let at = (entry.offset - first.offset) as usize;
+                let bytes =
+                    span.get(at..at + entry.length as usize)
+                        .ok_or(FormatError::Truncated {
+                            what: "page",
+                            needed: u64::from(entry.length),
+                            have: span.len().saturating_sub(at) as u64,
+                        })?;
+                verify_page(&self.header, index as usize, bytes)?;
+                Ok(bytes.to_vec())
+            })
+            .collect()
     }
 
     /// Always `None`: an object is never changed in place, only replaced,

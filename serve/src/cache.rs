@@ -10,6 +10,7 @@
 //! log is written once per page, not once per request.
 
 use std::collections::HashMap;
+use std::ops::Range;
 use std::sync::atomic::Ordering;
 use std::sync::{Arc, Mutex};
 
@@ -119,7 +120,44 @@ impl PageCache {
         if let Some(error) = known {
             return Err(PageError::Format(error));
         }
-        let frame = read_verified(scene, page, metrics).inspect_err(|e| match e {
+        let frame = read_verified(scene, page, metrics)
+            .inspect_err(|e| self.failed(scene, page, e, metrics))?;
+        self.insert((scene.id, page), frame.clone(), metrics);
+        Ok(frame)
+    }
+
+    /// Reads neighbouring pages `pages` of `scene` at once (one request to
+    /// a store that can) into the cache, skipping none: read-ahead calls it
+    /// for runs of pages it found missing. Returns how many were loaded.
+    pub fn read_run_through(
+        &self,
+        scene: &ServedScene,
+        pages: Range<u32>,
+        metrics: &Metrics,
+    ) -> u64 {
+        let mut loaded = 0;
+        for (page, read) in pages.clone().zip(scene.source.read_pages(pages)) {
+            Metrics::add(&metrics.disk_reads, 1);
+            match read {
+                Ok(bytes) => {
+                    Metrics::add(&metrics.disk_read_bytes, bytes.len() as u64);
+                    let mut frame = Vec::with_capacity(bytes.len() + 1);
+                    frame.push(FrameKind::Page as u8);
+                    frame.extend_from_slice(&bytes);
+                    self.insert((scene.id, page), Bytes::from(frame), metrics);
+                    loaded += 1;
+                }
+                Err(e) => self.failed(scene, page, &e, metrics),
+            }
+        }
+        loaded
+    }
+
+    /// What a failed read of `page` means: a corrupt page's verdict is
+    /// kept (and warned about once), a changed scene retired, and a store
+    /// that did not answer is no verdict at all.
+    fn failed(&self, scene: &ServedScene, page: u32, e: &PageError, metrics: &Metrics) {
+        match e {
             PageError::Format(error) => {
                 Metrics::add(&metrics.corrupt_pages, 1);
                 tracing::warn!(scene = %scene.name, page, "corrupt page, never sent: {error}");
@@ -127,17 +165,15 @@ impl PageCache {
                 if verdicts.len() >= MAX_VERDICTS {
                     verdicts.clear();
                 }
-                verdicts.insert(key, error.clone());
+                verdicts.insert((scene.id, page), error.clone());
             }
             PageError::Changed(why) => {
                 scene.retire(&format!("its file changed on disk: {why}"));
             }
-            // Not a verdict on the page: the store may answer later (the
-            // source logged the failure and counted it).
+            // The source logged the failure and counted it; the store may
+            // answer later.
             PageError::Unavailable(_) => {}
-        })?;
-        self.insert((scene.id, page), frame.clone(), metrics);
-        Ok(frame)
+        }
     }
 
     /// A cached frame, counted as a hit; `None` (not yet counted) on a miss.

@@ -3,9 +3,12 @@
 //! (the 1995 report's memory server, section 6.2).
 //!
 //! A small pool of plain threads does the reading, because a read may wait
-//! on the disk and must not stall the async runtime. The
-//! queue in front of it is bounded: a hint that does not fit is dropped
-//! (and counted), since read-ahead is only ever an optimisation.
+//! on the disk and must not stall the async runtime. The children of a
+//! page lie side by side, so the pages missing from the cache are queued
+//! as runs of neighbours, each read at once where the source can (one
+//! range request to an object store). The queue in front of the threads is
+//! bounded: a hint that does not fit is dropped (and counted), since
+//! read-ahead is only ever an optimisation.
 
 use std::collections::HashSet;
 use std::ops::Range;
@@ -18,10 +21,12 @@ use super::metrics::Metrics;
 
 /// Threads reading ahead; the machine this targets has two cores.
 pub const PREFETCH_THREADS: usize = 2;
-/// Hints waiting for a thread.
+/// Hints (runs of pages) waiting for a thread.
 pub const PREFETCH_QUEUE: usize = 4096;
+/// Pages in one run at most.
+pub const MAX_RUN: u32 = 64;
 
-type Job = (Arc<ServedScene>, u32);
+type Job = (Arc<ServedScene>, Range<u32>);
 
 /// The handle connections give hints to; the threads stop when it drops.
 #[derive(Debug)]
@@ -61,20 +66,37 @@ impl Prefetcher {
     }
 
     /// Asks for `pages` of `scene` to be read into the cache; pages already
-    /// there are skipped. Never blocks.
+    /// there or on their way are skipped, and the rest queued as runs of
+    /// neighbours. Never blocks.
     pub fn hint(&self, scene: &Arc<ServedScene>, pages: Range<u32>) {
+        let mut run: Option<Range<u32>> = None;
         for page in pages {
             let key = (scene.id, page);
-            if self.cache.contains(key) || !lock(&self.pending).insert(key) {
-                continue;
+            let wanted = !self.cache.contains(key) && lock(&self.pending).insert(key);
+            match &mut run {
+                Some(r) if wanted && r.end == page && r.end - r.start < MAX_RUN => r.end += 1,
+                _ => {
+                    if let Some(done) = run.take() {
+                        self.queue(scene, done);
+                    }
+                    run = wanted.then_some(page..page + 1);
+                }
             }
-            match self.tx.try_send((scene.clone(), page)) {
-                Ok(()) => {}
-                Err(TrySendError::Full(_)) => {
-                    lock(&self.pending).remove(&key);
+        }
+        if let Some(done) = run {
+            self.queue(scene, done);
+        }
+    }
+
+    fn queue(&self, scene: &Arc<ServedScene>, run: Range<u32>) {
+        match self.tx.try_send((scene.clone(), run.clone())) {
+            Ok(()) => {}
+            Err(TrySendError::Full(_) | TrySendError::Disconnected(_)) => {
+                let mut pending = lock(&self.pending);
+                for page in run {
+                    pending.remove(&(scene.id, page));
                     Metrics::add(&self.metrics.prefetch_dropped, 1);
                 }
-                Err(TrySendError::Disconnected(_)) => return,
             }
         }
     }
@@ -86,15 +108,28 @@ fn worker(rx: &Mutex<Receiver<Job>>, cache: &PageCache, metrics: &Metrics, pendi
             Ok(rx) => rx.recv(),
             Err(_) => return,
         };
-        let Ok((scene, page)) = job else { return };
-        let key = (scene.id, page);
-        if !cache.contains(key) {
-            match cache.read_through(&scene, page, metrics) {
-                Ok(_) => Metrics::add(&metrics.prefetch_loads, 1),
-                // Told to the session that asks for the page, if one does.
-                Err(e) => tracing::debug!(scene = %scene.name, "read-ahead: {e}"),
-            }
+        let Ok((scene, run)) = job else { return };
+        // Pages a client's own read brought in meanwhile are not read
+        // again: the run shrinks to what is still missing at its ends.
+        let queued = run.clone();
+        let mut run = run;
+        while !run.is_empty() && cache.contains((scene.id, run.start)) {
+            run.start += 1;
         }
-        lock(pending).remove(&key);
+        while !run.is_empty() && cache.contains((scene.id, run.end - 1)) {
+            run.end -= 1;
+        }
+        // Failures are told to the session that asks for the page, if one
+        // does (and corrupt pages are remembered by the cache).
+        let loaded = match run.len() {
+            0 => 0,
+            1 => u64::from(cache.read_through(&scene, run.start, metrics).is_ok()),
+            _ => cache.read_run_through(&scene, run.clone(), metrics),
+        };
+        Metrics::add(&metrics.prefetch_loads, loaded);
+        let mut pending = lock(pending);
+        for page in queued {
+            pending.remove(&(scene.id, page));
+        }
     }
 }

@@ -23,7 +23,7 @@ mod stamp;
 pub mod verify;
 pub use histogram::{Histogram, RemoteStats};
 pub use scene_file::SceneFile;
-pub use source::{PageError, PageSource};
+pub use source::{PageError, PageSource, read_each};
 pub use stamp::{FileStamp, ObjectStamp, Stamp};
 
 /// Why a file could not be written or read. The cause is a field named

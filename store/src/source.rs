@@ -6,6 +6,8 @@
 //! (in `farfield-objects`) an object read by range requests; the server
 //! never names either.
 
+use std::ops::Range;
+
 use farfield_protocol::FormatError;
 use farfield_protocol::file::FileHeader;
 
@@ -42,6 +44,13 @@ pub trait PageSource: Send + Sync + std::fmt::Debug {
     /// from its async tasks. A source that finds its stored version gone
     /// says [`PageError::Changed`], whatever the bytes it read.
     fn read_page(&self, index: u32, out: &mut Vec<u8>) -> Result<(), PageError>;
+    /// Reads each page of `pages` (neighbours in the scene), verified as
+    /// [`PageSource::read_page`] does, one result per page in order. A
+    /// source that can fetch neighbours at once (one range request to a
+    /// store) overrides it; the default reads them one by one.
+    fn read_pages(&self, pages: Range<u32>) -> Vec<Result<Vec<u8>, PageError>> {
+        read_each(self, pages)
+    }
     /// How the stored scene changed since it was opened, if it did.
     fn changed(&self) -> Option<String>;
     /// The version opened, which the server's watcher compares with what
@@ -49,6 +58,19 @@ pub trait PageSource: Send + Sync + std::fmt::Debug {
     fn stamp(&self) -> crate::Stamp;
     /// Where it is stored, for logs (a path, or a store's URL).
     fn location(&self) -> String;
+}
+
+/// Reads `pages` one [`PageSource::read_page`] at a time.
+pub fn read_each<S: PageSource + ?Sized>(
+    source: &S,
+    pages: Range<u32>,
+) -> Vec<Result<Vec<u8>, PageError>> {
+    pages
+        .map(|page| {
+            let mut out = Vec::new();
+            source.read_page(page, &mut out).map(|()| out)
+        })
+        .collect()
 }
 
 impl PageSource for crate::SceneFile {

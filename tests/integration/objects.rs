@@ -12,7 +12,10 @@ use farfield_protocol::file::FileHeader;
 use farfield_protocol::messages::ServerMessage;
 use farfield_render::headless_or_skip;
 use farfield_serve::{RunningServer, ServerConfig, start};
-use farfield_store::SceneFile;
+use std::sync::atomic::Ordering;
+
+use farfield_objects::ObjectScene;
+use farfield_store::{PageError, PageSource, SceneFile};
 use farfield_tests::scratch;
 
 use crate::s3::S3Store;
@@ -237,4 +240,51 @@ fn the_store_stopped_and_started_while_a_client_streams_then_every_page_arrives_
         }
     });
     assert_eq!(server.metrics().corrupt_pages, 0);
+}
+
+#[test]
+fn neighbouring_pages_come_in_one_range_request_and_are_checked_one_by_one() {
+    let dir = scratch("objects-coalesce");
+    let Some(store) = S3Store::start_or_skip(&dir.join("store"), &["scenes"]) else {
+        return;
+    };
+    let local = dir.join("island.ff");
+    let mut build = vec!["build", "gen:island"];
+    build.extend(ISLAND);
+    crate::cli(&[build.as_slice(), &["--out", local.to_str().unwrap()]].concat()).expect("build");
+    let file = SceneFile::open(&local).unwrap();
+    let run = 1..6u32;
+    let publisher = store.bucket("s3://scenes", Duration::from_secs(5));
+    farfield_objects::publish(&local, &publisher, "island.ff").expect("publish");
+    // One byte of page 3 damaged in the store.
+    let entry = file.header.pages[3];
+    let stored = store.object_file("scenes", "island.ff");
+    let mut bytes = std::fs::read(&stored).unwrap();
+    bytes[(entry.offset + u64::from(entry.length) / 2) as usize] ^= 0x5a;
+    std::fs::write(&stored, &bytes).unwrap();
+
+    for (coalesce, requests) in [
+        (farfield_objects::DEFAULT_COALESCE_BYTES, 1),
+        (0, run.len() as u64),
+    ] {
+        let bucket = store.bucket_with("s3://scenes", Duration::from_secs(5), coalesce);
+        let stats = bucket.stats_handle();
+        let scene = ObjectScene::open(bucket, "island.ff").expect("open");
+        let before = stats.requests.load(Ordering::Relaxed);
+        let pages = scene.read_pages(run.clone());
+        let asked = stats.requests.load(Ordering::Relaxed) - before;
+        assert_eq!(asked, requests, "coalescing up to {coalesce} bytes");
+        for (page, read) in run.clone().zip(pages) {
+            if page == 3 {
+                assert!(
+                    matches!(read, Err(PageError::Format(_))),
+                    "page 3: {read:?}"
+                );
+            } else {
+                let mut want = Vec::new();
+                file.read_page_into(page as usize, &mut want).unwrap();
+                assert!(read.expect("a good page") == want, "page {page}");
+            }
+        }
+    }
 }

@@ -129,10 +129,21 @@ impl S3Store {
 
     /// A client of `url` (`s3://bucket/prefix`) with these credentials.
     pub(crate) fn bucket(&self, url: &str, timeout: Duration) -> Arc<Bucket> {
+        self.bucket_with(url, timeout, farfield_objects::DEFAULT_COALESCE_BYTES)
+    }
+
+    /// As [`S3Store::bucket`], coalescing neighbours up to `coalesce_bytes`.
+    pub(crate) fn bucket_with(
+        &self,
+        url: &str,
+        timeout: Duration,
+        coalesce_bytes: u64,
+    ) -> Arc<Bucket> {
         let options = BucketOptions {
             timeout,
             endpoint: Some(self.endpoint()),
             credentials: Some((ACCESS_KEY.into(), SECRET_KEY.into())),
+            coalesce_bytes,
         };
         let url = StoreUrl::parse(url).expect("store url");
         Arc::new(Bucket::open(&url, &options, Default::default()).expect("bucket"))

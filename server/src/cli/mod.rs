@@ -68,6 +68,10 @@ pub struct StoreArgs {
     /// as failed.
     #[arg(long, default_value_t = 10.0, value_parser = seconds)]
     pub store_timeout: f64,
+    /// Neighbouring pages (read ahead together) come in one range request
+    /// while their span is at most this many bytes; 0 asks for each alone.
+    #[arg(long, default_value_t = farfield_objects::DEFAULT_COALESCE_BYTES)]
+    pub store_coalesce_bytes: u64,
 }
 
 impl StoreArgs {
@@ -87,6 +91,7 @@ impl StoreArgs {
         );
         let options = farfield_objects::BucketOptions {
             timeout: Duration::from_secs_f64(self.store_timeout),
+            coalesce_bytes: self.store_coalesce_bytes,
             ..Default::default()
         };
         let bucket = farfield_objects::Bucket::open(&url, &options, stats)?;
