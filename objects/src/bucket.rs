@@ -3,6 +3,7 @@
 
 use std::future::Future;
 use std::ops::Range;
+use std::path::PathBuf;
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
@@ -14,7 +15,7 @@ use object_store::{
     BackoffConfig, ClientOptions, GetOptions, GetRange, ObjectMeta, ObjectStore, RetryConfig,
 };
 
-use crate::StoreUrl;
+use crate::{DiskTier, StoreUrl};
 
 /// The extension of scene objects a prefix is listed for.
 const SCENE_EXTENSION: &str = ".ff";
@@ -45,6 +46,8 @@ pub struct BucketOptions {
     /// Neighbouring pages are read in one range request while their span
     /// is at most this many bytes (0: every page alone).
     pub coalesce_bytes: u64,
+    /// A local-disk second tier: its folder and its bound in bytes.
+    pub tier: Option<(PathBuf, u64)>,
 }
 
 impl Default for BucketOptions {
@@ -54,6 +57,7 @@ impl Default for BucketOptions {
             endpoint: None,
             credentials: None,
             coalesce_bytes: DEFAULT_COALESCE_BYTES,
+            tier: None,
         }
     }
 }
@@ -99,6 +103,7 @@ pub struct Bucket {
     runtime: Option<tokio::runtime::Runtime>,
     timeout: Duration,
     coalesce_bytes: u64,
+    tier: Option<DiskTier>,
     stats: Arc<RemoteStats>,
     health: Mutex<Health>,
 }
@@ -159,6 +164,12 @@ impl Bucket {
             .with_retry(retry)
             .build()
             .map_err(|e| unavailable(&e))?;
+        let tier = match &options.tier {
+            Some((dir, bytes)) => Some(DiskTier::open(dir, *bytes).map_err(|e| {
+                RemoteError::Unavailable(format!("the second tier in {}: {e}", dir.display()))
+            })?),
+            None => None,
+        };
         let runtime = tokio::runtime::Builder::new_multi_thread()
             .worker_threads(2)
             .thread_name("farfield-store")
@@ -171,6 +182,7 @@ impl Bucket {
             runtime: Some(runtime),
             timeout: options.timeout,
             coalesce_bytes: options.coalesce_bytes,
+            tier,
             stats,
             health: Mutex::new(Health::default()),
         })
@@ -184,6 +196,15 @@ impl Bucket {
     /// The largest span read in one request for neighbouring pages.
     pub fn coalesce_bytes(&self) -> u64 {
         self.coalesce_bytes
+    }
+
+    /// The local-disk second tier, if there is one.
+    pub fn tier(&self) -> Option<&DiskTier> {
+        self.tier.as_ref()
+    }
+
+    pub(crate) fn stats(&self) -> &RemoteStats {
+        &self.stats
     }
 
     /// What this bucket's requests did (shared with whoever reports it).

@@ -8,7 +8,8 @@
 //! environment; an [`ObjectScene`] is one scene in it, a
 //! [`farfield_store::PageSource`] whose header and directory are read once
 //! and whose pages are read by range requests and verified like a file's.
-//! [`publish`] uploads a built file.
+//! [`publish`] uploads a built file; a [`DiskTier`] may keep pages read
+//! from the store on local disk, under the server's page cache.
 //!
 //! The server's page reads are blocking calls on its blocking pool and
 //! prefetch threads, so a bucket runs its requests on a small runtime of
@@ -20,11 +21,13 @@
 mod bucket;
 mod publish;
 mod scene;
+mod tier;
 mod url;
 
 pub use bucket::{Bucket, BucketOptions, DEFAULT_COALESCE_BYTES, Listed, RemoteError};
 pub use publish::publish;
 pub use scene::ObjectScene;
+pub use tier::DiskTier;
 pub use url::StoreUrl;
 
 /// Whether `text` names a place in object storage rather than on disk.

@@ -93,6 +93,9 @@ pub struct MetricsSnapshot {
     pub store_errors: u64,
     pub store_timeouts: u64,
     pub store_fast_failures: u64,
+    /// Pages the store's local second tier served, and pages put there.
+    pub store_tier_hits: u64,
+    pub store_tier_writes: u64,
     /// The server process's resident memory (Linux; `None` elsewhere).
     pub resident_bytes: Option<u64>,
 }
@@ -171,6 +174,8 @@ impl Metrics {
             store_errors: get(&self.store.errors),
             store_timeouts: get(&self.store.timeouts),
             store_fast_failures: get(&self.store.fast_failures),
+            store_tier_hits: get(&self.store.tier_hits),
+            store_tier_writes: get(&self.store.tier_writes),
             resident_bytes: resident_bytes(),
         }
     }
@@ -347,6 +352,18 @@ impl Metrics {
             "counter",
             "Reads refused at once while the object store was known to be down.",
             s.store_fast_failures,
+        );
+        metric(
+            "farfield_store_tier_hits_total",
+            "counter",
+            "Pages served from the store's local second tier.",
+            s.store_tier_hits,
+        );
+        metric(
+            "farfield_store_tier_writes_total",
+            "counter",
+            "Pages read from the store and kept in its local second tier.",
+            s.store_tier_writes,
         );
         if let Some(rss) = s.resident_bytes {
             // The name Prometheus's own process collectors use.

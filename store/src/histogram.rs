@@ -53,7 +53,8 @@ impl Histogram {
 }
 
 /// What a source reading from a network store (object storage) did: its
-/// requests, the bytes they brought, their failures and latency. Shared by every scene of one store.
+/// requests, the bytes they brought, their failures and latency, and its
+/// local second tier's hits. Shared by every scene of one store.
 #[derive(Debug, Default)]
 pub struct RemoteStats {
     /// Range (and header) requests sent, and the bytes they returned.
@@ -65,6 +66,9 @@ pub struct RemoteStats {
     pub timeouts: AtomicU64,
     /// Reads answered at once because the store was known to be down.
     pub fast_failures: AtomicU64,
+    /// Pages found in the local second tier, and pages put there.
+    pub tier_hits: AtomicU64,
+    pub tier_writes: AtomicU64,
     pub latency: Histogram,
 }
 

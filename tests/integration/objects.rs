@@ -5,7 +5,7 @@
 //! while a client streams, which then gets every page right.
 
 use std::net::SocketAddr;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::time::Duration;
 
 use farfield_protocol::file::FileHeader;
@@ -81,6 +81,27 @@ fn render(server: &RunningServer, scene: &str, out: &Path) -> (u32, u32, Vec<u8>
     farfield_image::read_png(out).expect("png")
 }
 
+/// Builds the island into `dir/island.ff` with the command line.
+fn build_island(dir: &Path) -> PathBuf {
+    let local = dir.join("island.ff");
+    let mut build = vec!["build", "gen:island"];
+    build.extend(ISLAND);
+    crate::cli(&[build.as_slice(), &["--out", local.to_str().unwrap()]].concat()).expect("build");
+    local
+}
+
+/// A scratch folder, a store with a bucket `scenes`, and the island built
+/// there and published as `island.ff`: (folder, store, the local file).
+/// `None` when there is no store and the test may skip.
+fn island_in_store(name: &str) -> Option<(PathBuf, S3Store, PathBuf)> {
+    let dir = scratch(name);
+    let store = S3Store::start_or_skip(&dir.join("store"), &["scenes"])?;
+    let local = build_island(&dir);
+    let publisher = store.bucket("s3://scenes", Duration::from_secs(5));
+    farfield_objects::publish(&local, &publisher, "island.ff").expect("publish");
+    Some((dir, store, local))
+}
+
 #[test]
 fn a_scene_built_into_a_store_renders_as_the_local_file_and_a_damaged_page_is_refused() {
     let dir = scratch("objects-publish");
@@ -89,10 +110,9 @@ fn a_scene_built_into_a_store_renders_as_the_local_file_and_a_damaged_page_is_re
     };
     let local_dir = dir.join("local");
     std::fs::create_dir_all(&local_dir).unwrap();
-    let local = local_dir.join("island.ff");
+    let local = build_island(&local_dir);
     let mut build = vec!["build", "gen:island"];
     build.extend(ISLAND);
-    crate::cli(&[build.as_slice(), &["--out", local.to_str().unwrap()]].concat()).expect("build");
     // Straight into the store, its address from the environment.
     cli_in_child(
         &store,
@@ -171,16 +191,10 @@ fn a_scene_built_into_a_store_renders_as_the_local_file_and_a_damaged_page_is_re
 
 #[test]
 fn the_store_stopped_and_started_while_a_client_streams_then_every_page_arrives_right() {
-    let dir = scratch("objects-outage");
-    let Some(mut store) = S3Store::start_or_skip(&dir.join("store"), &["scenes"]) else {
+    let Some((_dir, mut store, local)) = island_in_store("objects-outage") else {
         return;
     };
-    let local = dir.join("island.ff");
-    let mut build = vec!["build", "gen:island"];
-    build.extend(ISLAND);
-    crate::cli(&[build.as_slice(), &["--out", local.to_str().unwrap()]].concat()).expect("build");
     let bucket = store.bucket("s3://scenes", Duration::from_secs(2));
-    farfield_objects::publish(&local, &bucket, "island.ff").expect("publish");
     let file = SceneFile::open(&local).unwrap();
     let pages = file.header.pages.len() as u32;
     assert!(pages > 4, "{pages} pages");
@@ -244,18 +258,11 @@ fn the_store_stopped_and_started_while_a_client_streams_then_every_page_arrives_
 
 #[test]
 fn neighbouring_pages_come_in_one_range_request_and_are_checked_one_by_one() {
-    let dir = scratch("objects-coalesce");
-    let Some(store) = S3Store::start_or_skip(&dir.join("store"), &["scenes"]) else {
+    let Some((_dir, store, local)) = island_in_store("objects-coalesce") else {
         return;
     };
-    let local = dir.join("island.ff");
-    let mut build = vec!["build", "gen:island"];
-    build.extend(ISLAND);
-    crate::cli(&[build.as_slice(), &["--out", local.to_str().unwrap()]].concat()).expect("build");
     let file = SceneFile::open(&local).unwrap();
     let run = 1..6u32;
-    let publisher = store.bucket("s3://scenes", Duration::from_secs(5));
-    farfield_objects::publish(&local, &publisher, "island.ff").expect("publish");
     // One byte of page 3 damaged in the store.
     let entry = file.header.pages[3];
     let stored = store.object_file("scenes", "island.ff");
@@ -287,4 +294,74 @@ fn neighbouring_pages_come_in_one_range_request_and_are_checked_one_by_one() {
             }
         }
     }
+}
+
+#[test]
+fn a_second_tier_on_disk_serves_pages_again_and_through_an_outage() {
+    let Some((dir, mut store, local)) = island_in_store("objects-tier") else {
+        return;
+    };
+    let file = SceneFile::open(&local).unwrap();
+    let tier_dir = dir.join("tier");
+    let bucket = store.bucket_options(
+        "s3://scenes",
+        farfield_objects::BucketOptions {
+            timeout: Duration::from_secs(2),
+            tier: Some((tier_dir.clone(), 64 << 20)),
+            ..Default::default()
+        },
+    );
+    let stats = bucket.stats_handle();
+    let scene = ObjectScene::open(bucket, "island.ff").expect("open");
+    let want = |page: u32| {
+        let mut bytes = Vec::new();
+        file.read_page_into(page as usize, &mut bytes).unwrap();
+        bytes
+    };
+    let read = |page: u32| {
+        let mut bytes = Vec::new();
+        scene.read_page(page, &mut bytes).map(|()| bytes)
+    };
+    let count = |c: &std::sync::atomic::AtomicU64| c.load(Ordering::Relaxed);
+
+    // Read from the store once (a run of neighbours and a page alone),
+    // kept in the tier.
+    let run = scene.read_pages(1..5);
+    assert!(read(6).unwrap() == want(6));
+    assert_eq!(count(&stats.tier_writes), 5);
+    let asked = count(&stats.requests);
+    // Again: from the tier, no request; a run half in the tier asks only
+    // for the rest.
+    assert!(read(2).unwrap() == want(2));
+    assert_eq!(count(&stats.requests), asked, "page 2 came from the tier");
+    let mixed = scene.read_pages(3..9);
+    assert_eq!(
+        count(&stats.requests),
+        asked + 1,
+        "5, 7 and 8 in one request (their span)"
+    );
+    for (page, bytes) in (1..5).zip(run).chain((3..9).zip(mixed)) {
+        assert!(bytes.unwrap() == want(page), "page {page}");
+    }
+    // A damaged copy in the tier is dropped and read from the store.
+    let name = std::fs::read_dir(&tier_dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().into_string().unwrap())
+        .find(|n| n.ends_with("-4"))
+        .expect("page 4 in the tier");
+    let mut damaged = std::fs::read(tier_dir.join(&name)).unwrap();
+    let middle = damaged.len() / 2;
+    damaged[middle] ^= 0x5a;
+    std::fs::write(tier_dir.join(&name), damaged).unwrap();
+    assert!(read(4).unwrap() == want(4));
+    assert_eq!(count(&stats.requests), asked + 2, "page 4 asked for again");
+    // With the store down, what the tier holds is still served.
+    store.stop();
+    let hits = count(&stats.tier_hits);
+    assert!(read(5).unwrap() == want(5));
+    assert_eq!(count(&stats.tier_hits), hits + 1);
+    assert!(
+        matches!(read(10), Err(PageError::Unavailable(_))),
+        "page 10 was never read"
+    );
 }

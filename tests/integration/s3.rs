@@ -139,11 +139,22 @@ impl S3Store {
         timeout: Duration,
         coalesce_bytes: u64,
     ) -> Arc<Bucket> {
+        self.bucket_options(
+            url,
+            BucketOptions {
+                timeout,
+                coalesce_bytes,
+                ..BucketOptions::default()
+            },
+        )
+    }
+
+    /// A client of `url` with `options`, and this store's address and keys.
+    pub(crate) fn bucket_options(&self, url: &str, options: BucketOptions) -> Arc<Bucket> {
         let options = BucketOptions {
-            timeout,
             endpoint: Some(self.endpoint()),
             credentials: Some((ACCESS_KEY.into(), SECRET_KEY.into())),
-            coalesce_bytes,
+            ..options
         };
         let url = StoreUrl::parse(url).expect("store url");
         Arc::new(Bucket::open(&url, &options, Default::default()).expect("bucket"))

@@ -72,6 +72,14 @@ pub struct StoreArgs {
     /// while their span is at most this many bytes; 0 asks for each alone.
     #[arg(long, default_value_t = farfield_objects::DEFAULT_COALESCE_BYTES)]
     pub store_coalesce_bytes: u64,
+    /// A local-disk second tier under the page cache: a folder (emptied at
+    /// start) that keeps pages read from the store, up to
+    /// --store-tier-bytes.
+    #[arg(long)]
+    pub store_tier_dir: Option<PathBuf>,
+    /// The second tier's bound in bytes.
+    #[arg(long, default_value_t = 4 << 30)]
+    pub store_tier_bytes: u64,
 }
 
 impl StoreArgs {
@@ -92,6 +100,10 @@ impl StoreArgs {
         let options = farfield_objects::BucketOptions {
             timeout: Duration::from_secs_f64(self.store_timeout),
             coalesce_bytes: self.store_coalesce_bytes,
+            tier: self
+                .store_tier_dir
+                .clone()
+                .map(|dir| (dir, self.store_tier_bytes)),
             ..Default::default()
         };
         let bucket = farfield_objects::Bucket::open(&url, &options, stats)?;
