@@ -15,12 +15,12 @@
 # its requests' CPU and round trips on loopback, not a remote store's.
 #
 # Usage: benches/object_store.sh [OUT_DIR] (binaries from target/release;
-#   CLIENTS ("1 16"), SECONDS_RUN (10), TREES (32), SIZE, FPS, REPLICA_CLIENTS
+#   CLIENTS ("1 16"), SECONDS_RUN (20), TREES (32), SIZE, FPS, REPLICA_CLIENTS
 #   (48) override the defaults).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 out=$(mkdir -p "${1:-runs/object-store}" && cd "${1:-runs/object-store}" && pwd)
-seconds=${SECONDS_RUN:-10}; trees=${TREES:-32}
+seconds=${SECONDS_RUN:-20}; trees=${TREES:-32}
 bin=$(pwd)/target/release
 command -v s3s-fs >/dev/null || [ -x "$HOME/.cargo/bin/s3s-fs" ] ||
   { echo "s3s-fs not found (cargo install s3s-fs --version 0.14.1 --features binary)" >&2; exit 1; }
@@ -45,10 +45,12 @@ export AWS_ENDPOINT_URL=http://127.0.0.1:$store_port AWS_ACCESS_KEY_ID=bench \
   AWS_SECRET_ACCESS_KEY=bench-secret AWS_REGION=us-east-1
 $bin/farfield-server publish "$scene" s3://scenes/island.ff
 
-# Starts a server (extra arguments as given) and prints its address.
+# Starts a server (extra arguments as given) and prints its address and
+# pid. It never lists the store again (--rescan-seconds 0), so the store's
+# requests counted are the pages' alone.
 serve() {
   local log=$out/server-$RANDOM.log
-  $bin/farfield-server serve --listen 127.0.0.1:0 "$@" > "$log" 2>&1 &
+  $bin/farfield-server serve --listen 127.0.0.1:0 --rescan-seconds 0 "$@" > "$log" 2>&1 &
   pids+=($!)
   for _ in $(seq 100); do
     addr=$(sed -n 's/^listening on //p' "$log" | head -1)

@@ -12,7 +12,7 @@
 use std::collections::HashMap;
 use std::ops::Range;
 use std::sync::atomic::Ordering;
-use std::sync::{Arc, Mutex};
+use std::sync::{Arc, Condvar, Mutex};
 
 use axum::body::Bytes;
 use farfield_protocol::FormatError;
@@ -38,6 +38,34 @@ pub struct PageCache {
     capacity: u64,
     /// Pages that failed verification, and why.
     verdicts: Mutex<HashMap<PageKey, FormatError>>,
+    /// Reads under way, which later misses of the same page wait for.
+    flights: Mutex<HashMap<PageKey, Arc<Flight>>>,
+}
+
+/// One page being read, and its result once read.
+#[derive(Debug, Default)]
+struct Flight {
+    result: Mutex<Option<Result<Bytes, PageError>>>,
+    landed: Condvar,
+}
+
+impl Flight {
+    fn land(&self, result: Result<Bytes, PageError>) {
+        *self.result.lock().unwrap_or_else(|e| e.into_inner()) = Some(result);
+        self.landed.notify_all();
+    }
+
+    /// Blocks until the read lands (called on the blocking pool and the
+    /// read-ahead threads only, as reads are).
+    fn wait(&self) -> Result<Bytes, PageError> {
+        let mut result = self.result.lock().unwrap_or_else(|e| e.into_inner());
+        loop {
+            if let Some(result) = result.as_ref() {
+                return result.clone();
+            }
+            result = self.landed.wait(result).unwrap_or_else(|e| e.into_inner());
+        }
+    }
 }
 
 #[derive(Debug)]
@@ -58,6 +86,7 @@ impl PageCache {
             }),
             capacity,
             verdicts: Mutex::new(HashMap::new()),
+            flights: Mutex::new(HashMap::new()),
         }
     }
 
@@ -120,9 +149,38 @@ impl PageCache {
         if let Some(error) = known {
             return Err(PageError::Format(error));
         }
-        let frame = read_verified(scene, page, metrics)
-            .inspect_err(|e| self.failed(scene, page, e, metrics))?;
-        self.insert((scene.id, page), frame.clone(), metrics);
+        // One read per page at a time: clients (and read-ahead) missing the
+        // same page together wait for the first one's read, so a page costs
+        // the disk or the store one read however many want it at once.
+        let (flight, first) = {
+            let mut flights = self.flights.lock().unwrap_or_else(|e| e.into_inner());
+            match flights.get(&key) {
+                Some(flight) => (flight.clone(), false),
+                None => {
+                    let flight = Arc::new(Flight::default());
+                    flights.insert(key, flight.clone());
+                    (flight, true)
+                }
+            }
+        };
+        if !first {
+            return flight.wait();
+        }
+        // Read by a flight that just ended, between the miss and here.
+        let result = match self.get(key) {
+            Some(frame) => Ok(frame),
+            None => read_verified(scene, page, metrics)
+                .inspect_err(|e| self.failed(scene, page, e, metrics)),
+        };
+        if let Ok(frame) = &result {
+            self.insert(key, frame.clone(), metrics);
+        }
+        self.flights
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .remove(&key);
+        flight.land(result.clone());
+        let frame = result?;
         Ok(frame)
     }
 
@@ -235,5 +293,66 @@ mod tests {
         cache.insert((2, 0), Bytes::from(vec![0u8; 101]), &m);
         assert!(!cache.contains((2, 0)), "larger than the cache");
         assert_eq!(m.snapshot().cache_pages, 2);
+    }
+
+    /// A source whose every read takes a while, counted.
+    #[derive(Debug)]
+    struct Slow {
+        file: farfield_store::SceneFile,
+        reads: std::sync::atomic::AtomicU64,
+    }
+
+    impl farfield_store::PageSource for Slow {
+        fn header(&self) -> &farfield_protocol::file::FileHeader {
+            &self.file.header
+        }
+        fn header_bytes(&self) -> &[u8] {
+            self.file.header_bytes()
+        }
+        fn stored_len(&self) -> u64 {
+            self.file.len()
+        }
+        fn read_page(&self, index: u32, out: &mut Vec<u8>) -> Result<(), PageError> {
+            self.reads.fetch_add(1, Ordering::Relaxed);
+            std::thread::sleep(std::time::Duration::from_millis(100));
+            self.file.read_page(index, out)
+        }
+        fn changed(&self) -> Option<String> {
+            None
+        }
+        fn stamp(&self) -> farfield_store::Stamp {
+            farfield_store::Stamp::File(self.file.stamp())
+        }
+        fn location(&self) -> String {
+            "slow".into()
+        }
+    }
+
+    #[test]
+    fn clients_missing_one_page_together_share_one_read() {
+        use farfield_builder::import::{Params, load_input};
+        let dir = std::env::temp_dir().join(format!("farfield-flight-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("tree.ff");
+        let scene = load_input("gen:tree", &Params::default()).unwrap();
+        let (file, _) = farfield_builder::build_spheres(scene, &Default::default()).unwrap();
+        farfield_store::write_atomic(&path, &file).unwrap();
+        let slow = Slow {
+            file: farfield_store::SceneFile::open(&path).unwrap(),
+            reads: Default::default(),
+        };
+        let location = crate::origin::Location::File(path);
+        let scene = ServedScene::with_source(0, "tree", &location, Box::new(slow));
+        let m = Metrics::default();
+        let cache = PageCache::new(1 << 30, &m);
+        let frames: Vec<Bytes> = std::thread::scope(|s| {
+            let readers: Vec<_> = (0..8)
+                .map(|_| s.spawn(|| cache.read_through(&scene, 0, &m).unwrap()))
+                .collect();
+            readers.into_iter().map(|r| r.join().unwrap()).collect()
+        });
+        assert!(frames.iter().all(|f| *f == frames[0]));
+        assert_eq!(m.snapshot().disk_reads, 1, "eight misses, one read");
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 }

@@ -41,17 +41,25 @@ pub struct ServedScene {
 
 impl ServedScene {
     pub fn open(id: u32, name: &str, location: &Location) -> Result<Self, StoreError> {
-        let source = location.open()?;
-        let children = child_ranges(source.header());
-        Ok(Self {
+        Ok(Self::with_source(id, name, location, location.open()?))
+    }
+
+    /// A scene over a source already open.
+    pub fn with_source(
+        id: u32,
+        name: &str,
+        location: &Location,
+        source: Box<dyn PageSource>,
+    ) -> Self {
+        Self {
             id,
             name: name.to_owned(),
             location: location.clone(),
             stamp: source.stamp(),
+            children: child_ranges(source.header()),
             source,
-            children,
             retired: watch::Sender::new(None),
-        })
+        }
     }
 
     /// Takes the scene out of service, once: new sessions no longer find
