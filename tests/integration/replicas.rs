@@ -234,3 +234,22 @@ fn a_replica_killed_mid_stream_leaves_every_client_to_finish_through_the_other()
     );
     drop(replicas);
 }
+
+/// The images' healthcheck: healthy for a running server, an error (and a
+/// non-zero exit) for an address nobody answers on.
+#[test]
+fn the_health_command_tells_a_running_server_from_none() {
+    let (dir, _) = scenes("health");
+    let rt = crate::streaming::runtime();
+    let server = crate::streaming::serve(&rt, &dir, 0);
+    let url = format!("http://{}", server.local_addr());
+    let report = crate::cli(&["health", &url]).expect("healthy");
+    assert_eq!(report.json["healthy"], true);
+    let closed = TcpListener::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap();
+    let e = crate::cli(&["health", &format!("http://{closed}")]).expect_err("nobody answers");
+    assert!(format!("{e:#}").contains("refused"), "{e:#}");
+    rt.block_on(server.shutdown()).unwrap();
+}

@@ -5,6 +5,7 @@
 
 mod build;
 mod export;
+mod health;
 mod inspect;
 mod publish;
 mod serve;
@@ -44,6 +45,14 @@ pub enum Command {
     /// (`s3://bucket/key.ff`), checked first and stored in one multipart
     /// upload, so a reader never sees half of it.
     Publish(PublishArgs),
+    /// Exit 0 when the server at URL (`http://host:port`) answers /healthz
+    /// (the container images' healthcheck).
+    Health(HealthArgs),
+}
+
+#[derive(Debug, clap::Args)]
+pub struct HealthArgs {
+    pub url: String,
 }
 
 #[derive(Debug, clap::Args)]
@@ -373,6 +382,7 @@ pub fn run(cli: Cli) -> anyhow::Result<Report> {
         Command::Serve(args) => serve::run(&args),
         Command::Export(args) => export::run(&args),
         Command::Publish(args) => publish::run(&args),
+        Command::Health(args) => health::run(&args),
     }
 }
 
