@@ -144,8 +144,11 @@ impl Bucket {
         let allow_http = endpoint.starts_with("http://")
             || std::env::var("AWS_ALLOW_HTTP")
                 .is_ok_and(|v| v == "1" || v.eq_ignore_ascii_case("true"));
+        // The client's own timeout is a backstop past the bucket's deadline,
+        // which is what ends a request: its error says so plainly, and it is
+        // counted as a timeout.
         let client = ClientOptions::new()
-            .with_timeout(options.timeout)
+            .with_timeout(options.timeout + Duration::from_secs(1))
             .with_connect_timeout(options.timeout.min(Duration::from_secs(5)))
             .with_allow_http(allow_http);
         // A few quick retries inside the deadline; the bucket's own

@@ -365,3 +365,51 @@ fn a_second_tier_on_disk_serves_pages_again_and_through_an_outage() {
         "page 10 was never read"
     );
 }
+
+/// A store that takes connections and never answers (slow, or hung): every
+/// request ends at its deadline with a clear error, counted as a timeout,
+/// and the next reads fail at once until the back-off has passed. Needs no
+/// real store.
+#[test]
+fn a_store_that_never_answers_times_out_with_a_clear_error() {
+    let silent = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+    let endpoint = format!("http://{}", silent.local_addr().unwrap());
+    // Accept and hold every connection, answering nothing.
+    std::thread::spawn(move || {
+        let mut held = Vec::new();
+        for stream in silent.incoming().flatten() {
+            held.push(stream);
+        }
+    });
+    let options = farfield_objects::BucketOptions {
+        timeout: Duration::from_millis(500),
+        endpoint: Some(endpoint),
+        credentials: Some(("k".into(), "s".into())),
+        ..Default::default()
+    };
+    let url = farfield_objects::StoreUrl::parse("s3://scenes").unwrap();
+    let bucket = farfield_objects::Bucket::open(&url, &options, Default::default()).unwrap();
+    let stats = bucket.stats_handle();
+    let started = std::time::Instant::now();
+    let e = bucket.head("island.ff").expect_err("no answer");
+    let waited = started.elapsed();
+    assert!(e.to_string().contains("no answer within 500ms"), "{e}");
+    assert!(waited < Duration::from_secs(5), "waited {waited:?}");
+    assert!(
+        matches!(e, farfield_objects::RemoteError::Unavailable(_)),
+        "{e:?}"
+    );
+    assert_eq!(stats.errors.load(Ordering::Relaxed), 1);
+    assert_eq!(
+        stats.timeouts.load(Ordering::Relaxed),
+        1,
+        "cut by the deadline"
+    );
+    // Known down: the next read fails at once, without a request.
+    let again = bucket
+        .get_range("island.ff", 0..10, None)
+        .expect_err("still down");
+    assert!(again.to_string().contains("asked again in"), "{again}");
+    assert_eq!(stats.fast_failures.load(Ordering::Relaxed), 1);
+    assert_eq!(stats.requests.load(Ordering::Relaxed), 1);
+}

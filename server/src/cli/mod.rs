@@ -217,9 +217,10 @@ pub struct InspectArgs {
 
 #[derive(Debug, clap::Args)]
 pub struct ServeArgs {
-    /// Folder of scene files (`*.ff`; each is served under its file stem),
-    /// or `s3://bucket/prefix`: the `*.ff` objects under a prefix in
-    /// S3-compatible object storage, read by range requests.
+    /// Folder of scene files (`*.ff`; each is served under its file stem;
+    /// a path or a `file://` URL), or `s3://bucket/prefix`: the `*.ff`
+    /// objects under a prefix in S3-compatible object storage, read by
+    /// range requests.
     #[arg(long)]
     pub scenes: String,
     #[command(flatten)]

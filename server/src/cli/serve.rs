@@ -23,7 +23,9 @@ pub fn run(args: &ServeArgs) -> anyhow::Result<Report> {
         let (bucket, _) = args.store.bucket(&args.scenes, Default::default())?;
         Origin::Objects(bucket)
     } else {
-        Origin::Folder(args.scenes.clone().into())
+        // `file:///srv/scenes` is the folder `/srv/scenes`.
+        let folder = args.scenes.strip_prefix("file://").unwrap_or(&args.scenes);
+        Origin::Folder(folder.into())
     };
     let runtime = tokio::runtime::Builder::new_multi_thread()
         .enable_all()
