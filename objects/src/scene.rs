@@ -6,7 +6,7 @@ use std::sync::Arc;
 use bytes::Bytes;
 use farfield_protocol::FormatError;
 use farfield_protocol::file::FileHeader;
-use farfield_store::verify::{HeaderError, read_header, verify_page};
+use farfield_store::verify::{HeaderError, page_entry, read_header, verify_page};
 use farfield_store::{ObjectStamp, PageError, PageSource, RemoteStats, Stamp, StoreError};
 
 use crate::{Bucket, RemoteError};
@@ -78,22 +78,8 @@ impl ObjectScene {
 
     /// Page `index` from the store, verified, and kept in the tier.
     fn fetch_page(&self, index: u32) -> Result<Vec<u8>, PageError> {
-        let entry = *self
-            .header
-            .pages
-            .get(index as usize)
-            .ok_or(FormatError::BadPage {
-                page: index,
-                message: "outside the file".into(),
-            })?;
+        let entry = page_entry(&self.header, index as usize)?;
         let bytes = self.get(entry.offset..entry.offset + u64::from(entry.length))?;
-        if bytes.len() != entry.length as usize {
-            return Err(PageError::Format(FormatError::Truncated {
-                what: "page",
-                needed: u64::from(entry.length),
-                have: bytes.len() as u64,
-            }));
-        }
         verify_page(&self.header, index as usize, &bytes)?;
         self.keep_in_tier(index, &bytes);
         Ok(bytes.to_vec())
@@ -153,12 +139,7 @@ impl ObjectScene {
         let tier = self.bucket.tier()?;
         let name = self.tier_name(index);
         let bytes = tier.get(&name)?;
-        let whole = self
-            .header
-            .pages
-            .get(index as usize)
-            .is_some_and(|e| e.length as usize == bytes.len());
-        if !whole || verify_page(&self.header, index as usize, &bytes).is_err() {
+        if verify_page(&self.header, index as usize, &bytes).is_err() {
             tier.remove(&name);
             return None;
         }

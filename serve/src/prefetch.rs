@@ -110,25 +110,28 @@ fn worker(rx: &Mutex<Receiver<Job>>, cache: &PageCache, metrics: &Metrics, pendi
         };
         let Ok((scene, run)) = job else { return };
         // Pages a client's own read brought in meanwhile are not read
-        // again: the run shrinks to what is still missing at its ends.
-        let queued = run.clone();
-        let mut run = run;
-        while !run.is_empty() && cache.contains((scene.id, run.start)) {
-            run.start += 1;
+        // again: the run is read as its stretches still missing now.
+        let mut loaded = 0;
+        let mut page = run.start;
+        while page < run.end {
+            if cache.contains((scene.id, page)) {
+                page += 1;
+                continue;
+            }
+            let start = page;
+            while page < run.end && !cache.contains((scene.id, page)) {
+                page += 1;
+            }
+            // Failures are told to the session that asks for the page, if
+            // one does (and corrupt pages are remembered by the cache).
+            loaded += match page - start {
+                1 => u64::from(cache.read_through(&scene, start, metrics).is_ok()),
+                _ => cache.read_run_through(&scene, start..page, metrics),
+            };
         }
-        while !run.is_empty() && cache.contains((scene.id, run.end - 1)) {
-            run.end -= 1;
-        }
-        // Failures are told to the session that asks for the page, if one
-        // does (and corrupt pages are remembered by the cache).
-        let loaded = match run.len() {
-            0 => 0,
-            1 => u64::from(cache.read_through(&scene, run.start, metrics).is_ok()),
-            _ => cache.read_run_through(&scene, run.clone(), metrics),
-        };
         Metrics::add(&metrics.prefetch_loads, loaded);
         let mut pending = lock(pending);
-        for page in queued {
+        for page in run {
             pending.remove(&(scene.id, page));
         }
     }

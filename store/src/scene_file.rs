@@ -17,7 +17,7 @@ use farfield_protocol::hierarchy::Hierarchy;
 
 use crate::StoreError;
 use crate::stamp::FileStamp;
-use crate::verify::{HeaderError, read_header, verify_page};
+use crate::verify::{HeaderError, page_entry, read_header, verify_page};
 
 /// A paged file opened for reading.
 #[derive(Debug)]
@@ -89,10 +89,7 @@ impl SceneFile {
     /// error `out` is as it was. A file cut short under the reader is a
     /// truncated page, not a fault.
     pub fn read_page_into(&self, index: usize, out: &mut Vec<u8>) -> Result<(), FormatError> {
-        let e = *self.header.pages.get(index).ok_or(FormatError::BadPage {
-            page: index as u32,
-            message: "outside the file".into(),
-        })?;
+        let e = page_entry(&self.header, index)?;
         let start = out.len();
         out.resize(start + e.length as usize, 0);
         let read = read_exact_at(&self.file, &mut out[start..], e.offset)

@@ -3,7 +3,7 @@
 //! object read by range requests fail the same checks with the same errors.
 
 use farfield_protocol::FormatError;
-use farfield_protocol::file::{FileHeader, HierarchyKind};
+use farfield_protocol::file::{FileHeader, HierarchyKind, PageEntry};
 use farfield_protocol::page::Page;
 
 /// How much of a scene is read first to find its header's length.
@@ -51,13 +51,30 @@ pub fn read_header<E>(
     Ok((header, bytes))
 }
 
+/// Page `index`'s directory entry, or why there is none.
+pub fn page_entry(header: &FileHeader, index: usize) -> Result<PageEntry, FormatError> {
+    header
+        .pages
+        .get(index)
+        .copied()
+        .ok_or(FormatError::BadPage {
+            page: index as u32,
+            message: "outside the file".into(),
+        })
+}
+
 /// Checks `bytes`, read for page `index` of the scene `header` describes:
-/// its checksum, its page header, and its agreement with the directory.
+/// its length, its checksum, its page header, and its agreement with the
+/// directory.
 pub fn verify_page(header: &FileHeader, index: usize, bytes: &[u8]) -> Result<(), FormatError> {
-    let entry = header.pages.get(index).ok_or(FormatError::BadPage {
-        page: index as u32,
-        message: "outside the file".into(),
-    })?;
+    let entry = page_entry(header, index)?;
+    if bytes.len() != entry.length as usize {
+        return Err(FormatError::Truncated {
+            what: "page",
+            needed: u64::from(entry.length),
+            have: bytes.len() as u64,
+        });
+    }
     let page = match header.kind {
         HierarchyKind::Spheres => Page::parse(bytes, index as u32, header.node_bytes)?,
         HierarchyKind::Cubes | HierarchyKind::Plp | HierarchyKind::Bsp => {
