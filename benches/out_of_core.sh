@@ -8,7 +8,8 @@
 # The test `out_of_core` is this scaled down for CI.
 #
 # Usage: benches/out_of_core.sh [OUT_DIR] (binaries from target/release;
-#   CLIENTS, SECONDS_RUN, CACHE_MIB, LIMIT_MIB, TREES, SIZE, FPS override the defaults).
+#   CLIENTS, SECONDS_RUN, CACHE_MIB, LIMIT_MIB, TREES, SIZE, FPS override the defaults;
+#   LOADTEST_ARGS adds flags to the load test, e.g. "--max-outstanding 8").
 set -euo pipefail
 cd "$(dirname "$0")/.."
 out=${1:-runs/out-of-core}
@@ -64,6 +65,6 @@ done
 [ -n "$addr" ] || { echo "the server did not start: $(cat "$server_log")" >&2; exit 1; }
 echo "scene $bytes bytes, server page cache $cache bytes, memory limit $limit bytes, $clients clients for $seconds s"
 $bin/farfield loadtest --server "http://$addr" --scene island --clients "$clients" \
-  --duration "$seconds" --ramp 5 --size "${SIZE:-800x600}" --fps "${FPS:-10}" --client-cache-mib 32 --out "$out/load"
+  --duration "$seconds" --ramp 5 --size "${SIZE:-800x600}" --fps "${FPS:-10}" --client-cache-mib 32 ${LOADTEST_ARGS:-} --out "$out/load"
 echo "cgroup: peak $(cat "$cg/$peak_file" 2>/dev/null || echo -) bytes; $(grep oom_kill "$cg/$oom_file" || echo 'oom_kill -')"
 kill -0 $server 2>/dev/null || { echo "the server died" >&2; exit 1; }

@@ -349,6 +349,11 @@ pub struct LoadtestArgs {
     /// 4 keep-alive connections each. The comparison with a plain file server.
     #[arg(long = "static")]
     pub static_files: bool,
+    /// Pages each client has asked for and not yet received, at most; the
+    /// rest are asked for as pages arrive, most urgent first (every wanted
+    /// page at once if not given).
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..))]
+    pub max_outstanding: Option<u32>,
     /// Print the summary as JSON.
     #[arg(long)]
     pub json: bool,

@@ -22,9 +22,10 @@ use std::time::Duration;
 use bytes::Bytes;
 use farfield_protocol::FormatError;
 use farfield_protocol::codec::{self, CodecError};
-use farfield_protocol::file::FileHeader;
+use farfield_protocol::file::{FileHeader, HEADER_PREFIX_BYTES};
 use farfield_protocol::messages::{
-    ClientMessage, FrameKind, PROTOCOL_VERSION, PageWish, ServerMessage, SessionState, SharedView,
+    ClientMessage, FrameKind, MAX_HEADER_BYTES, PROTOCOL_VERSION, PageWish, ServerMessage,
+    SessionState, SharedView,
 };
 use farfield_protocol::page::claimed_index;
 use farfield_traverse::WantedPage;
@@ -67,6 +68,12 @@ pub struct SessionOptions {
     /// A certificate authority (PEM) to trust for `wss://` servers instead
     /// of the public roots; the native transport only.
     pub ca_cert: Option<std::path::PathBuf>,
+    /// Pages asked for and not yet arrived, at most (`None`: every wanted
+    /// page is asked for at once). Like Potree's `maxNodesLoading` or
+    /// Cesium's simultaneous tile loads: the rest are asked for as pages
+    /// arrive, highest priority first, so no request waits behind a long
+    /// queue of the client's own.
+    pub max_outstanding: Option<usize>,
 }
 
 impl Default for SessionOptions {
@@ -77,6 +84,7 @@ impl Default for SessionOptions {
             first_connect_grace: Duration::from_secs(10),
             token: None,
             ca_cert: None,
+            max_outstanding: None,
         }
     }
 }
@@ -170,6 +178,9 @@ pub struct Session<T: Transport> {
     first_deadline: Instant,
     backoff: Duration,
     header: Option<FileHeader>,
+    /// This connection's header frames so far, until they hold the whole
+    /// header (the server sends it in parts).
+    header_parts: Vec<u8>,
     /// Asked for and not yet arrived.
     requested: HashMap<u32, Wish>,
     /// Request-to-arrival times of the latest pages that were asked for
@@ -200,6 +211,7 @@ impl<T: Transport> Session<T> {
             first_deadline,
             backoff: FIRST_BACKOFF,
             header: None,
+            header_parts: Vec::new(),
             requested: HashMap::new(),
             latencies: VecDeque::new(),
             demo: None,
@@ -309,6 +321,7 @@ impl<T: Transport> Session<T> {
             TransportEvent::Opened => {
                 self.connected_once = true;
                 self.link = Link::Open { header: false };
+                self.header_parts = Vec::new();
                 Ok(())
             }
             TransportEvent::Frame(frame) => match self.on_frame(frame, out, acks) {
@@ -388,8 +401,35 @@ impl<T: Transport> Session<T> {
         Ok(Ok(()))
     }
 
-    fn on_header(&mut self, bytes: &[u8], out: &mut Vec<SessionEvent>) -> Result<(), SessionError> {
-        let header = FileHeader::decode(bytes).map_err(SessionError::BadHeader)?;
+    /// One header frame: a part of the header, joined to those before it
+    /// until they hold the length its first bytes declare.
+    fn on_header(&mut self, part: &[u8], out: &mut Vec<SessionEvent>) -> Result<(), SessionError> {
+        let bad = |why: String| SessionError::BadHeader(FormatError::BadHeader(why));
+        if self.link == (Link::Open { header: true }) {
+            return Err(bad("a header frame after the whole header".into()));
+        }
+        self.header_parts.extend_from_slice(part);
+        let have = self.header_parts.len();
+        if have < HEADER_PREFIX_BYTES {
+            return Ok(());
+        }
+        let len = FileHeader::peek_len(&self.header_parts).map_err(SessionError::BadHeader)?;
+        if len > MAX_HEADER_BYTES {
+            return Err(bad(format!(
+                "the header declares {len} bytes, more than the {MAX_HEADER_BYTES} a client takes"
+            )));
+        }
+        if have < len {
+            return Ok(());
+        }
+        if have > len {
+            return Err(bad(format!(
+                "header frames carry {have} bytes for a header of {len}"
+            )));
+        }
+        // Taken, not cleared: the buffer's memory goes with it.
+        let bytes = std::mem::take(&mut self.header_parts);
+        let header = FileHeader::decode(&bytes).map_err(SessionError::BadHeader)?;
         match &self.header {
             Some(h) if *h != header => return Err(SessionError::SceneChanged),
             // The same scene again, on a new connection.
@@ -488,19 +528,39 @@ impl<T: Transport> Session<T> {
         let mut new = Vec::new();
         let now = Instant::now();
         let mut still: HashMap<u32, f32> = HashMap::with_capacity(wanted.len());
-        for w in wanted {
+        // Under a bound, pages already on their way stay; new ones are
+        // admitted highest priority first into the room left.
+        let mut order: Vec<&WantedPage> = wanted.iter().collect();
+        let mut room = usize::MAX;
+        if let Some(bound) = self.options.max_outstanding {
+            order.sort_by(|a, b| b.priority.total_cmp(&a.priority));
+            let on_the_way = wanted
+                .iter()
+                .filter(|w| self.requested.contains_key(&w.page))
+                .count();
+            room = bound.saturating_sub(on_the_way);
+        }
+        for w in order {
             if self.gave_up(w.page) {
                 continue;
             }
             let priority = w.priority.min(f64::from(f32::MAX)) as f32;
-            still.insert(w.page, priority);
             match self.requested.get(&w.page).map(|w| w.priority) {
                 Some(p) if (p - priority).abs() <= 0.25 * p.abs() => {}
-                _ => new.push(PageWish {
+                Some(_) => new.push(PageWish {
                     page: w.page,
                     priority,
                 }),
+                None if room == 0 => continue,
+                None => {
+                    room -= 1;
+                    new.push(PageWish {
+                        page: w.page,
+                        priority,
+                    });
+                }
             }
+            still.insert(w.page, priority);
         }
         let stale: Vec<u32> = self
             .requested

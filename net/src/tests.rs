@@ -9,7 +9,9 @@ use farfield_protocol::codec::{
     decode_control, encode_control, encode_header_frame, encode_page_frame,
 };
 use farfield_protocol::hierarchy::Hierarchy;
-use farfield_protocol::messages::{ClientMessage, PROTOCOL_VERSION, ServerMessage};
+use farfield_protocol::messages::{
+    ClientMessage, MAX_HEADER_BYTES, PROTOCOL_VERSION, ServerMessage,
+};
 use farfield_traverse::WantedPage;
 
 use super::*;
@@ -414,4 +416,130 @@ fn the_hello_goes_out_with_every_connection_before_anything_else() {
         sent(&wire).as_slice(),
         [ClientMessage::Hello { .. }]
     ));
+}
+
+/// A session whose transport has opened, with the server's hello queued.
+fn opened() -> (Session<QueueTransport>, QueueTransport) {
+    let wire = QueueTransport::default();
+    let s = Session::open(
+        wire.clone(),
+        "ws://test/scenes/a/stream".into(),
+        SessionOptions::default(),
+    );
+    wire.push(TransportEvent::Opened);
+    wire.push(server_hello());
+    (s, wire)
+}
+
+#[test]
+fn a_header_in_parts_is_joined_even_across_a_lost_connection() {
+    let file = scene();
+    let header = file.header.encode();
+    // Parts of 7 bytes: even the length prefix comes split.
+    let parts: Vec<&[u8]> = header.chunks(7).collect();
+    let (mut s, wire) = opened();
+    for part in &parts[..parts.len() / 2] {
+        wire.push(frame(encode_header_frame(part)));
+    }
+    assert_eq!(s.pump(Duration::ZERO), Ok(Vec::new()));
+    assert!(!s.is_connected(), "half a header is no header");
+    // The connection drops mid-header: the next one starts from nothing.
+    wire.push(TransportEvent::Closed {
+        reason: "lost".into(),
+        how: Closing::ByServer,
+    });
+    s.pump(Duration::ZERO).expect("pump");
+    s.pump(Duration::from_millis(200)).expect("pump");
+    wire.push(TransportEvent::Opened);
+    wire.push(server_hello());
+    for part in &parts[..parts.len() - 1] {
+        wire.push(frame(encode_header_frame(part)));
+    }
+    assert_eq!(s.pump(Duration::ZERO), Ok(Vec::new()));
+    assert!(!s.is_connected());
+    wire.push(frame(encode_header_frame(parts[parts.len() - 1])));
+    assert_eq!(
+        s.pump(Duration::ZERO),
+        Ok(vec![SessionEvent::Header(file.header.clone())])
+    );
+    assert!(s.is_connected());
+    assert_eq!(s.header(), Some(&file.header));
+}
+
+#[test]
+fn header_parts_that_do_not_add_up_end_the_session() {
+    let file = scene();
+    let header = file.header.encode();
+    let ends = |frames: Vec<Vec<u8>>, why: &str| {
+        let (mut s, wire) = opened();
+        for f in frames {
+            wire.push(frame(f));
+        }
+        match s.pump(Duration::ZERO) {
+            Err(e @ SessionError::BadHeader(_)) => {
+                assert!(e.to_string().contains(why), "{e} lacks {why:?}")
+            }
+            other => panic!("expected a bad header ({why}), got {other:?}"),
+        }
+    };
+    // Bytes past the length the header declares.
+    let mut long = header.clone();
+    long.extend_from_slice(&[0; 3]);
+    ends(
+        vec![encode_header_frame(&long)],
+        &format!(
+            "carry {} bytes for a header of {}",
+            long.len(),
+            header.len()
+        ),
+    );
+    // A part after the whole header.
+    ends(
+        vec![encode_header_frame(&header), encode_header_frame(&[1])],
+        "after the whole header",
+    );
+    // A declared length no client should buffer: bytes 12..16 are it.
+    let mut huge = header[..16].to_vec();
+    huge[12..16].copy_from_slice(&(MAX_HEADER_BYTES as u32 + 1).to_le_bytes());
+    ends(vec![encode_header_frame(&huge)], "more than the");
+    // Not a header at all.
+    ends(vec![encode_header_frame(&[0; 16])], "magic");
+}
+
+#[test]
+fn a_bound_on_outstanding_pages_asks_for_the_most_urgent_first_and_the_rest_as_pages_arrive() {
+    let file = scene();
+    let wire = QueueTransport::default();
+    let mut s = Session::open(
+        wire.clone(),
+        "ws://test/scenes/a/stream".into(),
+        SessionOptions {
+            max_outstanding: Some(2),
+            ..SessionOptions::default()
+        },
+    );
+    wire.push(TransportEvent::Opened);
+    wire.push(server_hello());
+    wire.push(frame(encode_header_frame(&file.header.encode())));
+    s.pump(Duration::ZERO).expect("pump");
+    sent(&wire);
+    let wish = |page, priority| WantedPage { page, priority };
+    s.request(&[wish(1, 10.0), wish(2, 30.0), wish(3, 20.0)]);
+    assert_eq!(requested(&sent(&wire)), vec![2, 3]);
+    assert_eq!(s.outstanding(), 2);
+    // Full: asking again adds nothing.
+    s.request(&[wish(1, 10.0), wish(2, 30.0), wish(3, 20.0)]);
+    assert!(sent(&wire).is_empty());
+    // Page 2 arrives: the room it leaves goes to page 1.
+    wire.push(frame(encode_page_frame(&file.pages[2])));
+    s.pump(Duration::ZERO).expect("pump");
+    sent(&wire);
+    s.request(&[wish(1, 10.0), wish(3, 20.0)]);
+    assert_eq!(requested(&sent(&wire)), vec![1]);
+    assert_eq!(s.outstanding(), 2);
+    // Without a bound, everything wanted goes at once.
+    let (mut open, wire) = connected(&file);
+    sent(&wire);
+    open.request(&[wish(1, 10.0), wish(2, 30.0), wish(3, 20.0)]);
+    assert_eq!(requested(&sent(&wire)), vec![1, 2, 3]);
 }

@@ -8,7 +8,7 @@
 use serde::Serialize;
 use serde::de::DeserializeOwned;
 
-use crate::messages::FrameKind;
+use crate::messages::{FrameKind, HEADER_PART_BYTES};
 
 /// Largest control message accepted (pages travel outside this limit).
 pub const MAX_CONTROL_BYTES: usize = 1 << 20;
@@ -49,12 +49,22 @@ pub fn encode_page_frame(page: &[u8]) -> Vec<u8> {
     out
 }
 
-/// A header frame: the kind byte, then the file header as stored.
+/// A header frame: the kind byte, then (a part of) the file header as
+/// stored.
 pub fn encode_header_frame(header: &[u8]) -> Vec<u8> {
     let mut out = Vec::with_capacity(header.len() + 1);
     out.push(FrameKind::Header as u8);
     out.extend_from_slice(header);
     out
+}
+
+/// The file header as stored, cut into header frames of at most
+/// [`HEADER_PART_BYTES`] each, in order (one frame for a small header).
+pub fn encode_header_frames(header: &[u8]) -> Vec<Vec<u8>> {
+    header
+        .chunks(HEADER_PART_BYTES)
+        .map(encode_header_frame)
+        .collect()
 }
 
 /// Splits a frame into its kind and payload.
@@ -133,6 +143,20 @@ mod tests {
             frame_kind(&header).unwrap(),
             (FrameKind::Header, &[5u8, 5, 5][..])
         );
+        // A header cut into parts that join back into it.
+        let long: Vec<u8> = (0..HEADER_PART_BYTES * 2 + 7).map(|i| i as u8).collect();
+        let parts = encode_header_frames(&long);
+        assert_eq!(parts.len(), 3);
+        assert!(parts.iter().all(|p| p.len() <= HEADER_PART_BYTES + 1));
+        let joined: Vec<u8> = parts
+            .iter()
+            .flat_map(|p| match frame_kind(p).unwrap() {
+                (FrameKind::Header, body) => body.to_vec(),
+                other => panic!("not a header part: {other:?}"),
+            })
+            .collect();
+        assert_eq!(joined, long);
+        assert_eq!(encode_header_frames(&[5; 3]), vec![header.clone()]);
         let page = encode_page_frame(&[9, 9]);
         assert_eq!(frame_kind(&page).unwrap(), (FrameKind::Page, &[9u8, 9][..]));
         assert!(decode_control::<ClientMessage>(&page).is_err());

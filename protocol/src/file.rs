@@ -18,6 +18,9 @@ pub const FORMAT_VERSION: u32 = 1;
 pub const FIXED_HEADER_BYTES: usize = 136;
 /// Bytes of one directory entry.
 pub const PAGE_ENTRY_BYTES: usize = 40;
+/// The header's first bytes (magic, version, length), which say how long
+/// the whole header is ([`FileHeader::peek_len`]).
+pub const HEADER_PREFIX_BYTES: usize = 16;
 
 /// Which hierarchy the nodes form.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
@@ -201,8 +204,9 @@ impl FileHeader {
         out
     }
 
-    /// How many bytes the whole header occupies, read from its first 16
-    /// bytes; lets a reader fetch exactly the header and nothing more.
+    /// How many bytes the whole header occupies, read from its first
+    /// [`HEADER_PREFIX_BYTES`]; lets a reader fetch exactly the header and
+    /// nothing more.
     pub fn peek_len(prefix: &[u8]) -> Result<usize, FormatError> {
         let mut r = Reader::new(prefix, "header");
         if r.bytes(8)? != MAGIC {

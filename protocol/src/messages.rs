@@ -9,9 +9,10 @@
 //!
 //! 1. client -> [`ClientMessage::Hello`] with its protocol version and limits;
 //! 2. server -> [`ServerMessage::Hello`] (or [`ServerMessage::Error`] and a
-//!    close, e.g. for another protocol version), then a header frame with
-//!    the file header as stored (any size: it carries the page directory),
-//!    then page 0;
+//!    close, e.g. for another protocol version), then the file header as
+//!    stored, in header frames of at most [`HEADER_PART_BYTES`] each, which
+//!    the client joins until it holds the length the header's first 16
+//!    bytes declare (at most [`MAX_HEADER_BYTES`]), then page 0;
 //! 3. client -> [`ClientMessage::Request`] (pages with priorities; a later
 //!    request for a page still queued updates its priority; a request for a
 //!    page sent but not yet acknowledged is ignored, and one for a page
@@ -41,8 +42,20 @@
 
 use serde::{Deserialize, Serialize};
 
-/// Bumped whenever a message changes shape.
-pub const PROTOCOL_VERSION: u32 = 3;
+/// Bumped whenever a message changes shape. 4: the header comes in parts.
+pub const PROTOCOL_VERSION: u32 = 4;
+
+/// The most header bytes one header frame carries. A scene's header holds
+/// its page directory (40 bytes a page: 0.7 MB for 18,000 pages), and the
+/// server's websocket keeps its write buffer at the largest frame it ever
+/// wrote for the connection's whole life; parts keep that buffer small.
+pub const HEADER_PART_BYTES: usize = 64 << 10;
+
+/// The longest header a client joins from parts (a directory of 1.6
+/// million pages), so a server cannot make it buffer without end. The
+/// native websocket refused a larger single header frame before there
+/// were parts (its largest message is 64 MiB).
+pub const MAX_HEADER_BYTES: usize = 64 << 20;
 
 /// The first byte of every binary frame.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -52,8 +65,9 @@ pub enum FrameKind {
     Control = 0,
     /// A page's stored bytes (its index is in its own header).
     Page = 1,
-    /// The scene's file header as stored (`FileHeader::decode` reads it);
-    /// raw bytes like a page, so its size has no control-message limit.
+    /// A part of the scene's file header as stored (joined, `FileHeader::
+    /// decode` reads it); raw bytes like a page, so its size has no
+    /// control-message limit.
     Header = 2,
 }
 

@@ -13,10 +13,12 @@ use std::ops::Range;
 use std::sync::atomic::{AtomicU32, Ordering};
 use std::sync::{Arc, RwLock};
 
+use axum::body::Bytes;
 use serde_json::{Value, json};
 use tokio::sync::watch;
 
 use super::ServeError;
+use farfield_protocol::codec::encode_header_frames;
 use farfield_protocol::file::FileHeader;
 use farfield_store::{PageSource, Stamp, StoreError};
 
@@ -35,6 +37,9 @@ pub struct ServedScene {
     pub source: Box<dyn PageSource>,
     /// Per page: the pages holding children of its nodes (never itself).
     children: Vec<Range<u32>>,
+    /// The header as the frames every session starts with, made once: a
+    /// large directory is not copied per connection.
+    header_frames: Vec<Bytes>,
     /// Why it was taken out of service, once it was.
     retired: watch::Sender<Option<Arc<str>>>,
 }
@@ -57,9 +62,23 @@ impl ServedScene {
             location: location.clone(),
             stamp: source.stamp(),
             children: child_ranges(source.header()),
+            header_frames: encode_header_frames(source.header_bytes())
+                .into_iter()
+                .map(Bytes::from)
+                .collect(),
             source,
             retired: watch::Sender::new(None),
         }
+    }
+
+    /// The header frames a session sends after its hello, in order.
+    pub fn header_frames(&self) -> &[Bytes] {
+        &self.header_frames
+    }
+
+    /// Bytes of the largest header frame.
+    pub fn largest_header_frame(&self) -> usize {
+        self.header_frames.iter().map(Bytes::len).max().unwrap_or(0)
     }
 
     /// Takes the scene out of service, once: new sessions no longer find

@@ -8,7 +8,9 @@
 //! What a connection costs at most, whatever the client sends:
 //! [`crate::session::MAX_OUTBOX_BYTES`] of control replies, a websocket
 //! write buffer of [`WRITE_BUFFER_BYTES`] plus the scene's largest frame
-//! and [`WRITE_BUFFER_SLACK_BYTES`] (where answers to pings wait), a read
+//! (its largest page, or a header part of at most
+//! [`farfield_protocol::messages::HEADER_PART_BYTES`]) and
+//! [`WRITE_BUFFER_SLACK_BYTES`] (where answers to pings wait), a read
 //! buffer of one client message (a few KiB), and a schedule of at most one
 //! entry per page of the scene (requests and cancels are both kept per
 //! page, never per message).

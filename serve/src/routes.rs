@@ -165,11 +165,11 @@ async fn stream(
         Ok(ws) => ws,
         Err(rejection) => return rejection.into_response(),
     };
-    // The write buffer holds one frame (the header or the largest page)
+    // The write buffer holds one frame (a header part or the largest page)
     // beyond its usual size, and room for pongs: a client that pings and
     // never reads costs this much, not more (tungstenite's default is
-    // unbounded).
-    let largest_frame = scene.source.header_bytes().len().max(scene.largest_page()) + 16;
+    // unbounded). Its memory stays at the most it ever held.
+    let largest_frame = scene.largest_header_frame().max(scene.largest_page()) + 16;
     ws.max_message_size(MAX_CLIENT_MESSAGE)
         .max_frame_size(MAX_CLIENT_MESSAGE)
         .write_buffer_size(WRITE_BUFFER_BYTES)

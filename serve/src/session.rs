@@ -19,7 +19,7 @@ use std::time::{Duration, Instant};
 
 use axum::body::Bytes;
 use axum::extract::ws::{CloseFrame, Message, WebSocket};
-use farfield_protocol::codec::{decode_control, encode_control, encode_header_frame, frame_kind};
+use farfield_protocol::codec::{decode_control, encode_control, frame_kind};
 use farfield_protocol::messages::{ClientMessage, FrameKind, PROTOCOL_VERSION, ServerMessage};
 use farfield_store::PageError;
 use futures_util::stream::{SplitSink, SplitStream};
@@ -287,16 +287,13 @@ pub(crate) async fn run(
             return;
         }
     };
-    let header = scene.source.header_bytes();
     tracing::info!(%peer, scene = %scene.name, window, allow_push, "client connected");
 
-    let outbox = VecDeque::from([
-        Bytes::from(encode_control(&ServerMessage::Hello {
-            protocol_version: PROTOCOL_VERSION,
-            server: format!("farfield-server {}", env!("CARGO_PKG_VERSION")),
-        })),
-        Bytes::from(encode_header_frame(header)),
-    ]);
+    let mut outbox = VecDeque::from([Bytes::from(encode_control(&ServerMessage::Hello {
+        protocol_version: PROTOCOL_VERSION,
+        server: format!("farfield-server {}", env!("CARGO_PKG_VERSION")),
+    }))]);
+    outbox.extend(scene.header_frames().iter().cloned());
     let first_bytes: usize = outbox.iter().map(Bytes::len).sum();
     let wake = Arc::new(Notify::new());
     let shared = Shared {

@@ -190,6 +190,7 @@ pub fn loadtest(args: crate::cli::LoadtestArgs) -> anyhow::Result<()> {
         session: args.session,
         push: args.push,
         static_files: args.static_files,
+        max_outstanding: args.max_outstanding.map(|n| n as usize),
         ..farfield_tools::loadtest::LoadJob::new(
             &args.server,
             &args.scene,

@@ -69,7 +69,7 @@ async fn a_token_is_needed_and_sees_only_its_scenes() {
     let (ws, _) = tokio_tungstenite::connect_async(url)
         .await
         .expect("connect with the token");
-    let mut c = Client { ws };
+    let mut c = Client::over(ws);
     c.send(&farfield_protocol::messages::ClientMessage::Hello {
         protocol_version: farfield_protocol::messages::PROTOCOL_VERSION,
         max_in_flight_bytes: MIN_WINDOW,

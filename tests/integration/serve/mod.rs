@@ -18,7 +18,9 @@ use farfield_builder::import::{Params, load_input};
 use farfield_net::stream_url;
 use farfield_protocol::codec::{MAX_CONTROL_BYTES, encode_control, encode_page_frame};
 use farfield_protocol::file::FileHeader;
-use farfield_protocol::messages::{ClientMessage, PROTOCOL_VERSION, PageWish, ServerMessage};
+use farfield_protocol::messages::{
+    ClientMessage, HEADER_PART_BYTES, PROTOCOL_VERSION, PageWish, ServerMessage,
+};
 use farfield_store::write_atomic;
 use farfield_tests::scratch;
 use futures_util::SinkExt;
@@ -238,7 +240,7 @@ async fn a_client_that_stops_reading_still_has_its_cancels_read_and_stalls_no_on
     .await
     .expect("timed out")
     .expect("handshake");
-    let mut stalled = Client { ws };
+    let mut stalled = Client::over(ws);
     stalled
         .send(&ClientMessage::Hello {
             protocol_version: PROTOCOL_VERSION,
@@ -308,8 +310,9 @@ async fn another_protocol_version_gets_a_fatal_error_naming_both() {
 }
 
 /// A scene with so many pages that its header (40 bytes a page) is larger
-/// than any control message may be still opens: the header travels as its
-/// own raw frame, like a page.
+/// than any control message may be still opens: the header travels in raw
+/// frames, like pages, of at most `HEADER_PART_BYTES` each (so no
+/// connection's write buffer grows to the whole directory).
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_header_larger_than_a_control_message_still_arrives_whole() {
     let dir = scratch("serve-huge-header");
@@ -325,8 +328,10 @@ async fn a_header_larger_than_a_control_message_still_arrives_whole() {
     assert!(FileHeader::encoded_len(file.header.pages.len()) > MAX_CONTROL_BYTES);
     write_atomic(&dir.join("many.ff"), &file).expect("write");
     let server = serve(&dir).await;
-    let (_c, header, page0) = Client::open(server.local_addr(), "many", 1 << 20, false).await;
+    let (c, header, page0) = Client::open(server.local_addr(), "many", 1 << 20, false).await;
     assert_eq!(header, file.header.encode());
+    assert_eq!(c.header_frames, header.len().div_ceil(HEADER_PART_BYTES));
+    assert!(c.header_frames > 1, "{} bytes in one frame", header.len());
     assert_eq!(page0, file.pages[0]);
     server.shutdown().await.expect("shutdown");
 }

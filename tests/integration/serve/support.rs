@@ -10,8 +10,9 @@ use farfield_builder::PagedFile;
 use farfield_builder::import::{Params, load_input};
 use farfield_net::stream_url;
 use farfield_protocol::codec::{decode_control, encode_control, frame_kind};
+use farfield_protocol::file::{FileHeader, HEADER_PREFIX_BYTES};
 use farfield_protocol::messages::{
-    ClientMessage, FrameKind, PROTOCOL_VERSION, PageWish, ServerMessage,
+    ClientMessage, FrameKind, HEADER_PART_BYTES, PROTOCOL_VERSION, PageWish, ServerMessage,
 };
 use farfield_protocol::page::claimed_index;
 use farfield_serve::{RunningServer, ServerConfig, start};
@@ -125,6 +126,8 @@ pub(crate) enum In {
 
 pub(crate) struct Client {
     pub(crate) ws: WebSocketStream<MaybeTlsStream<TcpStream>>,
+    /// How many frames the header came in ([`Client::open`]).
+    pub(crate) header_frames: usize,
 }
 
 impl Client {
@@ -134,7 +137,15 @@ impl Client {
             .await
             .expect("connect timed out")
             .expect("websocket connect");
-        Self { ws }
+        Self::over(ws)
+    }
+
+    /// A client over a websocket opened some other way.
+    pub(crate) fn over(ws: WebSocketStream<MaybeTlsStream<TcpStream>>) -> Self {
+        Self {
+            ws,
+            header_frames: 0,
+        }
     }
 
     /// Connects, says hello, and checks the server's hello, the scene header
@@ -158,10 +169,22 @@ impl Client {
             }) => assert_eq!(protocol_version, PROTOCOL_VERSION),
             other => panic!("expected Hello, got {other:?}"),
         }
-        let header = match c.recv().await {
-            In::Header(header) => header,
-            other => panic!("expected the header, got {other:?}"),
-        };
+        // The header in parts of at most HEADER_PART_BYTES, joined until
+        // they hold the length its first bytes declare.
+        let mut header = Vec::new();
+        c.header_frames = 0;
+        while header.len() < HEADER_PREFIX_BYTES
+            || header.len() < FileHeader::peek_len(&header).expect("header prefix")
+        {
+            match c.recv().await {
+                In::Header(part) => {
+                    assert!(part.len() <= HEADER_PART_BYTES, "{} bytes", part.len());
+                    header.extend_from_slice(&part);
+                    c.header_frames += 1;
+                }
+                other => panic!("expected the header, got {other:?}"),
+            }
+        }
         let page0 = match c.recv().await {
             In::Page(0, bytes) => bytes,
             other => panic!("expected page 0, got {other:?}"),

@@ -142,6 +142,7 @@ fn connect(job: &LoadJob, push: bool, cache_bytes: usize) -> (QueueTransport, Vi
     let options = SessionOptions {
         token: job.token.clone(),
         allow_push: push,
+        max_outstanding: job.max_outstanding,
         ..SessionOptions::default()
     };
     let viewer = Viewer::over(

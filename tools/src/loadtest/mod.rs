@@ -71,6 +71,9 @@ pub struct LoadJob {
     /// `server` is a static file server holding `farfield-server
     /// export`'s files: pages come by HTTP GET ([`static_files`]).
     pub static_files: bool,
+    /// Each client's bound on pages asked for and not yet arrived
+    /// ([`farfield_net::SessionOptions::max_outstanding`]).
+    pub max_outstanding: Option<usize>,
 }
 
 impl LoadJob {
@@ -99,6 +102,7 @@ impl LoadJob {
             session: None,
             push: false,
             static_files: false,
+            max_outstanding: None,
         }
     }
 
@@ -212,6 +216,9 @@ pub struct LoadReport {
     /// Whether the server was a static file server (`--static`).
     #[serde(default)]
     pub static_files: bool,
+    /// Each client's bound on outstanding pages (`--max-outstanding`).
+    #[serde(default)]
+    pub max_outstanding: Option<usize>,
     pub follower_lag_p50_ms: Option<f64>,
     pub follower_lag_p95_ms: Option<f64>,
     pub follower_lag_max_ms: Option<f64>,
@@ -488,6 +495,7 @@ fn summarize(
         session: job.session.clone(),
         push: job.push,
         static_files: job.static_files,
+        max_outstanding: job.max_outstanding,
         follower_lag_p50_ms: total.lag_ms(0.5),
         follower_lag_p95_ms: total.lag_ms(0.95),
         follower_lag_max_ms: (!total.lag_us.is_empty()).then(|| total.lag_us.max() as f64 / 1e3),
