@@ -183,6 +183,10 @@ pub struct Session<T: Transport> {
     header_parts: Vec<u8>,
     /// Asked for and not yet arrived.
     requested: HashMap<u32, Wish>,
+    /// Under [`SessionOptions::max_outstanding`]: what the last
+    /// [`Session::request`] wanted and had no room for, most urgent first;
+    /// asked for as pages arrive, without waiting for the next request.
+    backlog: VecDeque<PageWish>,
     /// Request-to-arrival times of the latest pages that were asked for
     /// (at most [`LATENCY_SAMPLES`]; see [`Session::take_latencies`]).
     latencies: VecDeque<Duration>,
@@ -213,6 +217,7 @@ impl<T: Transport> Session<T> {
             header: None,
             header_parts: Vec::new(),
             requested: HashMap::new(),
+            backlog: VecDeque::new(),
             latencies: VecDeque::new(),
             demo: None,
             failures: HashMap::new(),
@@ -249,6 +254,7 @@ impl<T: Transport> Session<T> {
             self.link = Link::Ended;
         }
         if !acks.is_empty() && matches!(self.link, Link::Open { .. }) {
+            self.refill(&acks);
             self.send(&ClientMessage::Received { pages: acks });
         }
         result.map(|()| out)
@@ -531,6 +537,7 @@ impl<T: Transport> Session<T> {
         // Under a bound, pages already on their way stay; new ones are
         // admitted highest priority first into the room left.
         let mut order: Vec<&WantedPage> = wanted.iter().collect();
+        let mut held_back = VecDeque::new();
         let mut room = usize::MAX;
         if let Some(bound) = self.options.max_outstanding {
             order.sort_by(|a, b| b.priority.total_cmp(&a.priority));
@@ -551,7 +558,13 @@ impl<T: Transport> Session<T> {
                     page: w.page,
                     priority,
                 }),
-                None if room == 0 => continue,
+                None if room == 0 => {
+                    held_back.push_back(PageWish {
+                        page: w.page,
+                        priority,
+                    });
+                    continue;
+                }
                 None => {
                     room -= 1;
                     new.push(PageWish {
@@ -562,6 +575,7 @@ impl<T: Transport> Session<T> {
             }
             still.insert(w.page, priority);
         }
+        self.backlog = held_back;
         let stale: Vec<u32> = self
             .requested
             .keys()
@@ -591,6 +605,41 @@ impl<T: Transport> Session<T> {
                     },
                 );
             }
+            self.send(&ClientMessage::Request { pages: new });
+        }
+    }
+
+    /// Pages arrived (`arrived`): their room goes to the backlog's most
+    /// urgent pages, in one request.
+    fn refill(&mut self, arrived: &[u32]) {
+        let Some(bound) = self.options.max_outstanding else {
+            return;
+        };
+        let mut room = bound.saturating_sub(self.requested.len());
+        let mut new = Vec::new();
+        let now = Instant::now();
+        while room > 0 {
+            let Some(w) = self.backlog.pop_front() else {
+                break;
+            };
+            if self.requested.contains_key(&w.page)
+                || arrived.contains(&w.page)
+                || self.gave_up(w.page)
+            {
+                continue;
+            }
+            room -= 1;
+            self.requested.insert(
+                w.page,
+                Wish {
+                    priority: w.priority,
+                    since: now,
+                },
+            );
+            new.push(w);
+        }
+        if !new.is_empty() {
+            self.stats.pages_requested += new.len() as u64;
             self.send(&ClientMessage::Request { pages: new });
         }
     }

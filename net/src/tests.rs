@@ -530,13 +530,30 @@ fn a_bound_on_outstanding_pages_asks_for_the_most_urgent_first_and_the_rest_as_p
     // Full: asking again adds nothing.
     s.request(&[wish(1, 10.0), wish(2, 30.0), wish(3, 20.0)]);
     assert!(sent(&wire).is_empty());
-    // Page 2 arrives: the room it leaves goes to page 1.
+    // Page 2 arrives: the room it leaves goes to page 1 in the same pump,
+    // before the owner asks again.
     wire.push(frame(encode_page_frame(&file.pages[2])));
     s.pump(Duration::ZERO).expect("pump");
-    sent(&wire);
-    s.request(&[wish(1, 10.0), wish(3, 20.0)]);
-    assert_eq!(requested(&sent(&wire)), vec![1]);
+    let after = sent(&wire);
+    assert_eq!(requested(&after), vec![1]);
+    assert!(
+        after
+            .iter()
+            .any(|m| matches!(m, ClientMessage::Received { pages } if pages == &[2]))
+    );
     assert_eq!(s.outstanding(), 2);
+    s.request(&[wish(1, 10.0), wish(3, 20.0)]);
+    assert!(sent(&wire).is_empty(), "both are on their way");
+    // A new wish list replaces the backlog: page 4 waits, page 5 does not
+    // come back once it is no longer wanted.
+    s.request(&[wish(1, 10.0), wish(3, 20.0), wish(4, 5.0), wish(5, 1.0)]);
+    assert!(sent(&wire).is_empty());
+    s.request(&[wish(1, 10.0), wish(3, 20.0), wish(4, 5.0)]);
+    wire.push(frame(encode_page_frame(&file.pages[3])));
+    wire.push(frame(encode_page_frame(&file.pages[1])));
+    s.pump(Duration::ZERO).expect("pump");
+    assert_eq!(requested(&sent(&wire)), vec![4]);
+    assert_eq!(s.outstanding(), 1);
     // Without a bound, everything wanted goes at once.
     let (mut open, wire) = connected(&file);
     sent(&wire);

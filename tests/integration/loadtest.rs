@@ -84,6 +84,12 @@ fn a_few_clients_for_a_few_seconds_produce_every_output() {
     assert!(r.metrics_error.is_none(), "{r:?}");
     #[cfg(target_os = "linux")]
     assert!(r.server_resident_max_mib.is_some_and(|m| m > 1.0), "{r:?}");
+    // The server's own latency, from its histogram over the run.
+    let (s50, s99) = (
+        r.server_latency_p50_ms.expect("server p50"),
+        r.server_latency_p99_ms.expect("server p99"),
+    );
+    assert!(0.0 < s50 && s50 <= s99, "{r:?}");
 
     let seconds = seconds_of(&out);
     assert_eq!(seconds.len(), 3, "{seconds:?}");
@@ -379,4 +385,62 @@ fn load_clients_stream_an_exported_scene_from_a_static_file_server() {
         assert!(c.errors >= 1, "{c:?}");
         assert!(c.last_error.contains("404"), "{c:?}");
     }
+}
+
+/// `--max-outstanding` reaches the clients' sessions: the server never
+/// holds more of their requests than the bound allows (plus the page 0 it
+/// queues itself for each).
+#[test]
+fn a_bound_on_outstanding_pages_keeps_the_servers_queue_within_it() {
+    let (dir, _) = scenes("loadtest-bound");
+    let (rt, server, url) = serve_dir(&dir);
+    let out = dir.join("run");
+    cli(&[
+        "loadtest",
+        "--server",
+        &url,
+        "--scene",
+        "island",
+        "--clients",
+        "3",
+        "--duration",
+        "2",
+        "--size",
+        "320x240",
+        "--max-outstanding",
+        "2",
+        "--out",
+        out.to_str().unwrap(),
+    ])
+    .expect("loadtest");
+    rt.block_on(server.shutdown()).expect("shutdown");
+    let r = summary(&out);
+    assert_eq!(r.max_outstanding, Some(2));
+    assert!(r.pages > 3, "pages kept coming as others arrived: {r:?}");
+    assert_eq!(r.errors, 0, "{r:?}");
+    let depths: Vec<f64> = seconds_of(&out)
+        .iter()
+        .filter_map(|s| s.server_queue_depth)
+        .collect();
+    assert!(!depths.is_empty());
+    assert!(depths.iter().all(|&d| d <= 3.0 * 3.0), "{depths:?}");
+    assert!(
+        cli(&[
+            "loadtest",
+            "--server",
+            &url,
+            "--scene",
+            "island",
+            "--clients",
+            "1",
+            "--duration",
+            "1",
+            "--max-outstanding",
+            "0",
+            "--out",
+            out.to_str().unwrap()
+        ])
+        .is_err(),
+        "a bound of 0 is refused"
+    );
 }

@@ -240,6 +240,13 @@ pub struct LoadReport {
     pub clients_refined: usize,
     pub refined_p50_ms: Option<f64>,
     pub refined_max_ms: Option<f64>,
+    /// The server's own request latency over the run (a page wanted to
+    /// its frame sent, from its `/metrics` histogram): the upper bound of
+    /// the bucket the quantile falls in; infinite (null) past 10 s.
+    #[serde(default)]
+    pub server_latency_p50_ms: Option<f64>,
+    #[serde(default)]
+    pub server_latency_p99_ms: Option<f64>,
     pub server_resident_min_mib: Option<f64>,
     pub server_resident_max_mib: Option<f64>,
     pub server_cache_hit_rate: Option<f64>,
@@ -385,10 +392,12 @@ fn watch(shared: &Shared) -> Watched {
         let reads = b.disk_reads? - a.disk_reads?;
         (pages > 0.0).then(|| reads / pages)
     })();
+    let server_latency = (|| Some((first?.request_latency?, last?.request_latency?)))();
     Watched {
         seconds: rows,
         metrics_error: if any { None } else { error },
         reads_per_page,
+        server_latency,
     }
 }
 
@@ -397,6 +406,8 @@ struct Watched {
     seconds: Vec<SecondRow>,
     metrics_error: Option<String>,
     reads_per_page: Option<f64>,
+    /// The server's request latency histogram at the start and the end.
+    server_latency: Option<(scrape::Buckets, scrape::Buckets)>,
 }
 
 fn second_row(
@@ -511,6 +522,12 @@ fn summarize(
         clients_refined: refined.len(),
         refined_p50_ms: quantile(&mut refined, 0.5),
         refined_max_ms: refined.iter().copied().reduce(f64::max),
+        server_latency_p50_ms: watched
+            .server_latency
+            .and_then(|(a, b)| scrape::bucket_quantile_ms(&a, &b, 0.5)),
+        server_latency_p99_ms: watched
+            .server_latency
+            .and_then(|(a, b)| scrape::bucket_quantile_ms(&a, &b, 0.99)),
         server_resident_min_mib: rss.iter().copied().reduce(f64::min),
         server_resident_max_mib: rss.iter().copied().reduce(f64::max),
         // The run's mean of the seconds' rates.
@@ -529,6 +546,7 @@ pub fn describe(r: &LoadReport) -> String {
     format!(
         "{} clients on {} ({}) for {:.0} s: {} pages, {:.0} pages/s, {:.2} MB/s\n\
          request latency ms: p50 {}, p95 {}, p99 {}, max {} ({} pages)\n\
+         the server's own (wanted to sent): p50 at most {} ms, p99 at most {} ms\n\
          errors {}, reconnects {}\n\
          first image: {} of {} clients, p50 {} ms, max {} ms; refined: {} clients, p50 {} ms\n\
          server: resident {}..{} MiB, cache hit rate {}, disk reads {} ({} a page served){}\n{}",
@@ -544,6 +562,8 @@ pub fn describe(r: &LoadReport) -> String {
         ms(r.latency_p99_ms),
         ms(r.latency_max_ms),
         r.latency_samples,
+        ms(r.server_latency_p50_ms),
+        ms(r.server_latency_p99_ms),
         r.errors,
         r.reconnects,
         r.clients_with_first_image,

@@ -4,7 +4,15 @@
 use std::collections::HashMap;
 use std::time::Duration;
 
+use farfield_store::histogram::LATENCY_BUCKETS_S;
 use serde::Serialize;
+
+/// The server's histogram of its own request latency (a page wanted to its
+/// frame sent), read from `/metrics`.
+pub const REQUEST_LATENCY: &str = "farfield_request_latency_seconds_bucket";
+
+/// Cumulative counts per bucket of [`LATENCY_BUCKETS_S`], then `+Inf`.
+pub type Buckets = [f64; LATENCY_BUCKETS_S.len() + 1];
 
 /// The figures of one sample that a load test reports.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Serialize)]
@@ -19,6 +27,8 @@ pub struct ServerSample {
     pub queue_depth: Option<f64>,
     pub connected_clients: Option<f64>,
     pub open_connections: Option<f64>,
+    /// The server's request latency histogram, when every bucket was read.
+    pub request_latency: Option<Buckets>,
 }
 
 impl ServerSample {
@@ -45,8 +55,56 @@ impl ServerSample {
             queue_depth: v("farfield_queue_depth"),
             connected_clients: v("farfield_connected_clients"),
             open_connections: v("farfield_open_connections"),
+            request_latency: request_latency(text),
         }
     }
+}
+
+/// The request latency buckets out of the exposition text.
+fn request_latency(text: &str) -> Option<Buckets> {
+    let mut buckets = [f64::NAN; LATENCY_BUCKETS_S.len() + 1];
+    for line in text.lines() {
+        let Some(rest) = line.strip_prefix(REQUEST_LATENCY) else {
+            continue;
+        };
+        let Some((label, value)) = rest.split_once(' ') else {
+            continue;
+        };
+        let Some(le) = label
+            .strip_prefix("{le=\"")
+            .and_then(|l| l.strip_suffix("\"}"))
+        else {
+            continue;
+        };
+        let index = if le == "+Inf" {
+            Some(LATENCY_BUCKETS_S.len())
+        } else {
+            let le: f64 = le.parse().ok()?;
+            LATENCY_BUCKETS_S
+                .iter()
+                .position(|b| (b - le).abs() <= 1e-9 * b)
+        };
+        if let (Some(i), Ok(count)) = (index, value.trim().parse()) {
+            buckets[i] = count;
+        }
+    }
+    buckets.iter().all(|c| c.is_finite()).then_some(buckets)
+}
+
+/// The `q` quantile of what a histogram counted between two samples, as
+/// the upper bound of the bucket it falls in, in milliseconds (infinite
+/// past the last bound); `None` when nothing was counted.
+pub fn bucket_quantile_ms(before: &Buckets, after: &Buckets, q: f64) -> Option<f64> {
+    let total = after[LATENCY_BUCKETS_S.len()] - before[LATENCY_BUCKETS_S.len()];
+    if total <= 0.0 {
+        return None;
+    }
+    let bound = LATENCY_BUCKETS_S
+        .iter()
+        .enumerate()
+        .find(|&(i, _)| after[i] - before[i] >= q * total)
+        .map_or(f64::INFINITY, |(_, le)| *le);
+    Some(bound * 1e3)
 }
 
 /// Reads one server's `/metrics`.
@@ -117,5 +175,54 @@ mod tests {
         assert_eq!(s.resident_bytes, Some(123456.0));
         assert_eq!(s.disk_reads, None, "not a number");
         assert_eq!(s.cache_misses, None, "absent");
+        assert_eq!(s.request_latency, None, "no histogram");
+    }
+
+    /// The histogram as the server renders it, with `counts` cumulative.
+    fn exposition(counts: [u64; 17]) -> String {
+        let mut text = String::new();
+        for (le, c) in LATENCY_BUCKETS_S.iter().zip(&counts) {
+            text += &format!("{REQUEST_LATENCY}{{le=\"{le}\"}} {c}\n");
+        }
+        text + &format!("{REQUEST_LATENCY}{{le=\"+Inf\"}} {}\n", counts[16])
+    }
+
+    #[test]
+    fn the_servers_latency_quantiles_come_from_its_buckets_between_two_samples() {
+        // Buckets end at 0.1, 0.25, 0.5, 1, 2.5, 5, 10, 25 ms, ...
+        let before = ServerSample::parse(&exposition([0; 17]))
+            .request_latency
+            .unwrap();
+        // 100 requests: 50 within 1 ms, 49 more within 10 ms, 1 over 10 s.
+        let mut counts = [0u64; 17];
+        for (i, c) in counts.iter_mut().enumerate() {
+            *c = match i {
+                0..=2 => 0,
+                3..=5 => 50,
+                6..=15 => 99,
+                _ => 100,
+            };
+        }
+        let after = ServerSample::parse(&exposition(counts))
+            .request_latency
+            .unwrap();
+        assert_eq!(bucket_quantile_ms(&before, &after, 0.5), Some(1.0));
+        assert_eq!(bucket_quantile_ms(&before, &after, 0.99), Some(10.0));
+        assert_eq!(
+            bucket_quantile_ms(&before, &after, 1.0),
+            Some(f64::INFINITY)
+        );
+        assert_eq!(
+            bucket_quantile_ms(&after, &after, 0.5),
+            None,
+            "nothing counted"
+        );
+        // A bucket missing from the text is no histogram at all.
+        let partial: String = exposition(counts)
+            .lines()
+            .skip(1)
+            .map(|l| format!("{l}\n"))
+            .collect();
+        assert_eq!(ServerSample::parse(&partial).request_latency, None);
     }
 }
