@@ -8,7 +8,10 @@
 
 use std::collections::VecDeque;
 use std::sync::{Arc, Mutex, MutexGuard};
+use std::task::{Poll, Waker};
 use std::time::Duration;
+
+use web_time::Instant;
 
 use crate::transport::{Transport, TransportEvent};
 
@@ -20,8 +23,18 @@ pub struct QueueTransport {
 
 #[derive(Debug, Default)]
 struct Inner {
-    incoming: VecDeque<TransportEvent>,
+    /// Events for the session, each with when it was queued.
+    incoming: VecDeque<(TransportEvent, Instant)>,
+    /// When the event the session polled last was queued.
+    last_arrival: Option<Instant>,
+    /// Woken when an event is queued ([`QueueTransport::incoming_ready`]).
+    incoming_waker: Option<Waker>,
     sent: Vec<Vec<u8>>,
+    /// Woken when there is something for the driver
+    /// ([`QueueTransport::outgoing_ready`]).
+    outgoing_waker: Option<Waker>,
+    /// The owner is done with the connection: its driver stops.
+    finished: bool,
     connects: Vec<String>,
     /// A connection asked for and not yet taken by the driver.
     pending_connect: Option<String>,
@@ -37,9 +50,60 @@ impl QueueTransport {
         self.inner.lock().unwrap_or_else(|e| e.into_inner())
     }
 
-    /// Queues an event for the session's next poll.
+    /// Queues an event for the session's next poll, stamped now: a frame
+    /// arrived when its driver took it off the socket, however long the
+    /// session's owner takes to poll it.
     pub fn push(&self, event: TransportEvent) {
-        self.lock().incoming.push_back(event);
+        let mut inner = self.lock();
+        inner.incoming.push_back((event, Instant::now()));
+        if let Some(waker) = inner.incoming_waker.take() {
+            waker.wake();
+        }
+    }
+
+    /// Ready once an event is queued for the session (for an owner that
+    /// waits for its driver on another task).
+    pub async fn incoming_ready(&self) {
+        std::future::poll_fn(|cx| {
+            let mut inner = self.lock();
+            if inner.incoming.is_empty() {
+                inner.incoming_waker = Some(cx.waker().clone());
+                Poll::Pending
+            } else {
+                Poll::Ready(())
+            }
+        })
+        .await;
+    }
+
+    /// Ready once the session sent a frame, asked to connect or close, or
+    /// the owner finished (for a driver on another task than the owner).
+    pub async fn outgoing_ready(&self) {
+        std::future::poll_fn(|cx| {
+            let mut inner = self.lock();
+            if inner.sent.is_empty()
+                && inner.pending_connect.is_none()
+                && !inner.pending_close
+                && !inner.finished
+            {
+                inner.outgoing_waker = Some(cx.waker().clone());
+                Poll::Pending
+            } else {
+                Poll::Ready(())
+            }
+        })
+        .await;
+    }
+
+    /// The owner is done: a driver carrying this connection stops.
+    pub fn finish(&self) {
+        let mut inner = self.lock();
+        inner.finished = true;
+        inner.wake_driver();
+    }
+
+    pub fn is_finished(&self) -> bool {
+        self.lock().finished
     }
 
     /// Takes the frames the session sent since the last call.
@@ -78,10 +142,13 @@ impl Transport for QueueTransport {
         // Nothing of an abandoned connection is reported or sent after this.
         inner.incoming.clear();
         inner.sent = vec![hello];
+        inner.wake_driver();
     }
 
     fn send(&mut self, frame: Vec<u8>) {
-        self.lock().sent.push(frame);
+        let mut inner = self.lock();
+        inner.sent.push(frame);
+        inner.wake_driver();
     }
 
     fn close(&mut self) {
@@ -91,15 +158,35 @@ impl Transport for QueueTransport {
         inner.pending_connect = None;
         inner.incoming.clear();
         inner.sent.clear();
+        inner.wake_driver();
     }
 
     /// The next queued event; with none, waits `wait` (as a socket with
     /// nothing to say would) and returns `None`.
     fn poll(&mut self, wait: Duration) -> Option<TransportEvent> {
-        let next = self.lock().incoming.pop_front();
+        let next = {
+            let mut inner = self.lock();
+            let next = inner.incoming.pop_front();
+            if let Some((_, at)) = &next {
+                inner.last_arrival = Some(*at);
+            }
+            next
+        };
         if next.is_none() && !wait.is_zero() {
             std::thread::sleep(wait);
         }
-        next
+        next.map(|(event, _)| event)
+    }
+
+    fn arrived_at(&self) -> Option<Instant> {
+        self.lock().last_arrival
+    }
+}
+
+impl Inner {
+    fn wake_driver(&mut self) {
+        if let Some(waker) = self.outgoing_waker.take() {
+            waker.wake();
+        }
     }
 }

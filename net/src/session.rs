@@ -473,7 +473,9 @@ impl<T: Transport> Session<T> {
             if self.latencies.len() >= LATENCY_SAMPLES {
                 self.latencies.pop_front();
             }
-            self.latencies.push_back(wish.since.elapsed());
+            let arrived = self.transport.arrived_at().unwrap_or_else(Instant::now);
+            self.latencies
+                .push_back(arrived.saturating_duration_since(wish.since));
         }
         acks.push(index);
         out.push(SessionEvent::Page { index, bytes });

@@ -560,3 +560,52 @@ fn a_bound_on_outstanding_pages_asks_for_the_most_urgent_first_and_the_rest_as_p
     open.request(&[wish(1, 10.0), wish(2, 30.0), wish(3, 20.0)]);
     assert_eq!(requested(&sent(&wire)), vec![1, 2, 3]);
 }
+
+#[test]
+fn a_page_is_timed_when_it_came_off_the_wire_not_when_its_owner_got_round_to_it() {
+    let file = scene();
+    let (mut s, wire) = connected(&file);
+    s.request(&wanted(&[1]));
+    wire.push(frame(encode_page_frame(&file.pages[1])));
+    // The owner is busy (a traversal) before it pumps.
+    std::thread::sleep(Duration::from_millis(80));
+    s.pump(Duration::ZERO).expect("pump");
+    let took = s.take_latencies();
+    assert_eq!(took.len(), 1, "{took:?}");
+    assert!(took[0] < Duration::from_millis(40), "{took:?}");
+}
+
+#[tokio::test(flavor = "current_thread")]
+async fn a_queue_wakes_its_driver_and_its_owner_on_another_task() {
+    async fn within(what: impl std::future::Future<Output = ()>) {
+        tokio::time::timeout(Duration::from_secs(5), what)
+            .await
+            .expect("woken in time");
+    }
+    let wire = QueueTransport::default();
+    // The driver waits for something to send; a send wakes it.
+    let driver = tokio::spawn({
+        let wire = wire.clone();
+        async move { within(wire.outgoing_ready()).await }
+    });
+    tokio::task::yield_now().await;
+    assert!(!driver.is_finished(), "nothing to send yet");
+    let mut session_side = wire.clone();
+    session_side.send(vec![1]);
+    driver.await.expect("driver");
+    assert_eq!(wire.take_sent(), vec![vec![1]]);
+    // The owner waits for an event; a push wakes it.
+    let owner = tokio::spawn({
+        let wire = wire.clone();
+        async move { within(wire.incoming_ready()).await }
+    });
+    tokio::task::yield_now().await;
+    assert!(!owner.is_finished(), "nothing arrived yet");
+    wire.push(TransportEvent::Opened);
+    owner.await.expect("owner");
+    // Finishing wakes a driver and stays ready.
+    assert!(!wire.is_finished());
+    wire.finish();
+    within(wire.outgoing_ready()).await;
+    assert!(wire.is_finished());
+}

@@ -11,6 +11,7 @@
 use std::time::Duration;
 
 use bytes::Bytes;
+use web_time::Instant;
 
 /// What a transport reports.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -55,6 +56,14 @@ pub trait Transport: std::fmt::Debug {
     /// The next event, waiting at most `wait` for one (a transport that
     /// cannot block, such as a browser's, returns at once).
     fn poll(&mut self, wait: Duration) -> Option<TransportEvent>;
+    /// When the event `poll` returned last came off the wire, where the
+    /// transport knows it apart from when it was polled (a queue its
+    /// driver fills from another task). The session times pages by it, so
+    /// an owner busy elsewhere (a load client traversing) is not counted
+    /// as the server's or the network's time.
+    fn arrived_at(&self) -> Option<Instant> {
+        None
+    }
 }
 
 impl<T: Transport + ?Sized> Transport for Box<T> {
@@ -72,5 +81,9 @@ impl<T: Transport + ?Sized> Transport for Box<T> {
 
     fn poll(&mut self, wait: Duration) -> Option<TransportEvent> {
         (**self).poll(wait)
+    }
+
+    fn arrived_at(&self) -> Option<Instant> {
+        (**self).arrived_at()
     }
 }

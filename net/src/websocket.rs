@@ -339,9 +339,14 @@ pub async fn drive_wire<E>(
             });
             continue;
         }
-        // The next frame, then whatever else is ready, up to a batch.
-        let Ok(first) = tokio::time::timeout(TICK, s.next()).await else {
-            continue;
+        // The next frame, then whatever else is ready, up to a batch; or,
+        // sooner, something to send (from an owner on another task).
+        let first = tokio::select! {
+            next = tokio::time::timeout(TICK, s.next()) => match next {
+                Ok(first) => first,
+                Err(_) => continue,
+            },
+            () = wire.outgoing_ready() => continue,
         };
         let mut next = Some(first);
         let mut taken = 0;
@@ -365,6 +370,20 @@ pub async fn drive_wire<E>(
             wire.push(TransportEvent::Closed { reason, how });
         }
     }
+}
+
+/// Carries `wire`'s frames to and from its sockets as [`drive_wire`] does,
+/// until its owner [finishes](QueueTransport::finish) it, with no step of
+/// the owner's in between: the owner pumps its session on another task
+/// (a load client, whose traversals are long), so frames are taken off
+/// the socket, and stamped, when they come, and what the session sends
+/// goes out at once. Spawn it on a runtime of its own.
+pub async fn carry_wire(wire: QueueTransport) {
+    let carried = drive_wire(&wire, || {
+        Ok::<_, std::convert::Infallible>(!wire.is_finished())
+    })
+    .await;
+    let Ok(()) = carried;
 }
 
 /// What an attempt to connect yields.

@@ -4,8 +4,11 @@
 //! [`Session`](farfield_net::Session) (hello, requests, cancels,
 //! acknowledgements, reconnects), traversed by the scene kind's own
 //! traversal ([`traverse_frame`]) a few times a second; only the draw is
-//! left out. Socket and client share one task ([`drive_wire`]), so a
-//! thousand clients need no thousand threads.
+//! left out. Clients are tasks on a few threads, so a thousand clients
+//! need no thousand threads; their sockets are carried on a thread of
+//! their own ([`carried`]), so a page is taken off its socket, and its
+//! request-to-arrival time measured, when it comes, not when its client's
+//! thread is done traversing for the others.
 //!
 //! A client first holds its path's start camera until the view is
 //! refined (or for [`LoadJob::hold`]), as a user who opens a model and
@@ -18,7 +21,7 @@ use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 use farfield_net::queue::QueueTransport;
-use farfield_net::websocket::drive_wire;
+use farfield_net::websocket::{carry_wire, drive_wire};
 use farfield_net::{NetStats, SessionOptions};
 use farfield_protocol::camera::Camera;
 use farfield_view::demo_link::DemoLink;
@@ -34,6 +37,8 @@ use super::static_files::{FileServer, drive_static};
 /// What every client shares.
 #[derive(Debug)]
 pub struct Shared {
+    /// The runtime that carries every client's socket ([`carried`]).
+    pub io: tokio::runtime::Handle,
     pub job: LoadJob,
     pub path: CameraPath,
     pub recorder: Recorder,
@@ -112,7 +117,7 @@ pub async fn run(index: usize, clients: usize, shared: Arc<Shared>) -> ClientRow
         let step = || client.step(&mut viewer, &shared, &mut row);
         let ended = match &files {
             Some(files) => drive_static(&wire, files, &job.scene, step).await,
-            None => drive_wire(&wire, step).await,
+            None => carried(&shared.io, &wire, step).await,
         };
         client.set_connected(false, &shared);
         let Err(e) = ended else { break };
@@ -134,6 +139,38 @@ pub async fn run(index: usize, clients: usize, shared: Arc<Shared>) -> ClientRow
     }
     row
 }
+
+/// Steps a client while its connection is carried on the socket runtime
+/// `io` ([`carry_wire`]): frames come off the socket, stamped, when they
+/// arrive, and requests go out when made, however long a traversal keeps
+/// this thread. Steps again when something arrived, or after [`TICK`].
+async fn carried<E>(
+    io: &tokio::runtime::Handle,
+    wire: &QueueTransport,
+    mut step: impl FnMut() -> Result<bool, E>,
+) -> Result<(), E> {
+    let carrier = io.spawn(carry_wire(wire.clone()));
+    let result = loop {
+        match step() {
+            Ok(true) => {}
+            Ok(false) => break Ok(()),
+            Err(e) => break Err(e),
+        }
+        tokio::select! {
+            () = wire.incoming_ready() => {}
+            () = tokio::time::sleep(TICK) => {}
+        }
+    };
+    wire.finish();
+    if let Err(e) = carrier.await {
+        tracing::warn!("a load client's socket task ended badly: {e}");
+    }
+    result
+}
+
+/// How long a client waits for news before it steps anyway (its
+/// traversals have their own rate).
+const TICK: Duration = Duration::from_millis(20);
 
 /// A viewer of the job's scene over a fresh queue, holding at most
 /// `cache_bytes` of pages, connecting now (the queue's owner drives it).

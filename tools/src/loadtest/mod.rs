@@ -265,7 +265,17 @@ pub fn run(job: &LoadJob) -> anyhow::Result<LoadReport> {
         Some(p) => CameraPath::load(p)?,
         None => CameraPath::builtin(20.0),
     };
+    // The clients' sockets, on a thread of their own: a page comes off
+    // its socket (and is timed) when it arrives, not when its client is
+    // done traversing.
+    let io = tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(1)
+        .thread_name("farfield-load-io")
+        .enable_all()
+        .build()
+        .context("starting the load test's socket thread")?;
     let shared = Arc::new(Shared {
+        io: io.handle().clone(),
         job: job.clone(),
         path,
         recorder: Recorder::default(),
@@ -294,6 +304,7 @@ pub fn run(job: &LoadJob) -> anyhow::Result<LoadReport> {
                 .map_err(|_| anyhow::anyhow!("a load thread panicked"))??,
         );
     }
+    io.shutdown_timeout(Duration::from_secs(1));
     clients.sort_by_key(|c| c.client);
     let report = summarize(job, &shared, &watched, &clients);
     output::write_all(&job.out, &report, &watched.seconds, &clients)?;
