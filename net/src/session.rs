@@ -107,8 +107,12 @@ pub enum SessionEvent {
 pub enum DemoEvent {
     /// Who is in it now.
     State(SessionState),
-    /// The presenter's latest view.
-    View { seq: u64, view: SharedView },
+    /// The presenter's latest view, and when it came off the wire.
+    View {
+        seq: u64,
+        view: SharedView,
+        arrived: Instant,
+    },
     /// It closed, or refused this client, and why; the client is in no
     /// session now.
     Closed { session: String, reason: String },
@@ -385,7 +389,8 @@ impl<T: Transport> Session<T> {
                     out.push(SessionEvent::Demo(DemoEvent::State(state)));
                 }
                 ServerMessage::View { seq, view } => {
-                    out.push(SessionEvent::Demo(DemoEvent::View { seq, view }));
+                    let arrived = self.transport.arrived_at().unwrap_or_else(Instant::now);
+                    out.push(SessionEvent::Demo(DemoEvent::View { seq, view, arrived }));
                 }
                 ServerMessage::SessionClosed { session, reason } => {
                     if self.demo.as_ref().is_some_and(|d| d.name == session) {

@@ -609,3 +609,39 @@ async fn a_queue_wakes_its_driver_and_its_owner_on_another_task() {
     within(wire.outgoing_ready()).await;
     assert!(wire.is_finished());
 }
+
+#[test]
+fn a_presenters_view_is_stamped_when_it_came_off_the_wire() {
+    let file = scene();
+    let (mut s, wire) = connected(&file);
+    let view = farfield_protocol::messages::SharedView {
+        eye: [1.0, 2.0, 3.0],
+        target: [0.0; 3],
+        up: [0.0, 0.0, 1.0],
+        fov_y_deg: 60.0,
+        options: Vec::new(),
+    };
+    let pushed = web_time::Instant::now();
+    wire.push(frame(encode_control(&ServerMessage::View {
+        seq: 7,
+        view: view.clone(),
+    })));
+    std::thread::sleep(Duration::from_millis(80));
+    let events = s.pump(Duration::ZERO).expect("pump");
+    match events.as_slice() {
+        [
+            SessionEvent::Demo(DemoEvent::View {
+                seq: 7,
+                view: got,
+                arrived,
+            }),
+        ] => {
+            assert_eq!(got, &view);
+            assert!(
+                arrived.saturating_duration_since(pushed) < Duration::from_millis(40),
+                "stamped when polled, not when it came"
+            );
+        }
+        other => panic!("expected the view, got {other:?}"),
+    }
+}

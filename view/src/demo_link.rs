@@ -63,8 +63,8 @@ impl DemoLink {
                     self.state = Some(state);
                     self.closed = None;
                 }
-                DemoEvent::View { seq, view } => {
-                    self.latest = Some((seq, view, Instant::now()));
+                DemoEvent::View { seq, view, arrived } => {
+                    self.latest = Some((seq, view, arrived));
                 }
                 DemoEvent::Closed { session, reason } if session == self.name => {
                     self.closed = Some(reason);
