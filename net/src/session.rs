@@ -389,7 +389,7 @@ impl<T: Transport> Session<T> {
                     out.push(SessionEvent::Demo(DemoEvent::State(state)));
                 }
                 ServerMessage::View { seq, view } => {
-                    let arrived = self.transport.arrived_at().unwrap_or_else(Instant::now);
+                    let arrived = self.arrival();
                     out.push(SessionEvent::Demo(DemoEvent::View { seq, view, arrived }));
                 }
                 ServerMessage::SessionClosed { session, reason } => {
@@ -464,6 +464,12 @@ impl<T: Transport> Session<T> {
         Ok(())
     }
 
+    /// When the frame being handled came off the wire: the transport's
+    /// stamp where it keeps one, else now.
+    fn arrival(&self) -> Instant {
+        self.transport.arrived_at().unwrap_or_else(Instant::now)
+    }
+
     fn on_page(&mut self, bytes: Bytes, out: &mut Vec<SessionEvent>, acks: &mut Vec<u32>) {
         self.stats.bytes_received += bytes.len() as u64;
         self.stats.pages_received += 1;
@@ -478,7 +484,7 @@ impl<T: Transport> Session<T> {
             if self.latencies.len() >= LATENCY_SAMPLES {
                 self.latencies.pop_front();
             }
-            let arrived = self.transport.arrived_at().unwrap_or_else(Instant::now);
+            let arrived = self.arrival();
             self.latencies
                 .push_back(arrived.saturating_duration_since(wish.since));
         }

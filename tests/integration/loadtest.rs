@@ -23,6 +23,26 @@ pub(crate) fn cli(args: &[&str]) -> anyhow::Result<()> {
     )?)
 }
 
+/// `farfield loadtest` of the scene `island` on `url`: `clients` clients
+/// for `seconds`, then the `extra` flags, writing into `out`.
+fn load(url: &str, clients: &str, seconds: &str, extra: &[&str], out: &Path) -> anyhow::Result<()> {
+    let out = out.to_str().expect("a UTF-8 scratch path");
+    let mut args = vec![
+        "loadtest",
+        "--server",
+        url,
+        "--scene",
+        "island",
+        "--clients",
+        clients,
+        "--duration",
+        seconds,
+    ];
+    args.extend_from_slice(extra);
+    args.extend(["--out", out]);
+    cli(&args)
+}
+
 fn seconds_of(out: &Path) -> Vec<SecondRow> {
     rows::read(&out.join("seconds.csv")).expect("seconds.csv")
 }
@@ -41,25 +61,7 @@ fn a_few_clients_for_a_few_seconds_produce_every_output() {
     let (dir, _) = scenes("loadtest");
     let (rt, server, url) = serve_dir(&dir);
     let out = dir.join("run");
-    let out_s = out.to_str().unwrap();
-    cli(&[
-        "loadtest",
-        "--server",
-        &url,
-        "--scene",
-        "island",
-        "--clients",
-        "3",
-        "--duration",
-        "3",
-        "--ramp",
-        "1",
-        "--size",
-        "320x240",
-        "--out",
-        out_s,
-    ])
-    .expect("loadtest");
+    load(&url, "3", "3", &["--ramp", "1", "--size", "320x240"], &out).expect("loadtest");
     let served = server.metrics();
     rt.block_on(server.shutdown()).expect("shutdown");
 
@@ -143,21 +145,13 @@ fn connections_cut_by_the_network_are_counted_as_errors_and_reconnects() {
         Duration::from_millis(700),
     ));
     let out = dir.join("run");
-    cli(&[
-        "loadtest",
-        "--server",
+    load(
         &format!("http://{proxy}"),
-        "--scene",
-        "island",
-        "--clients",
         "2",
-        "--duration",
         "4",
-        "--size",
-        "320x240",
-        "--out",
-        out.to_str().unwrap(),
-    ])
+        &["--size", "320x240"],
+        &out,
+    )
     .expect("loadtest");
     rt.block_on(server.shutdown()).expect("shutdown");
     let r = summary(&out);
@@ -228,23 +222,13 @@ fn a_load_as_a_demo_session_measures_the_followers_lag() {
     let (dir, _) = scenes("loadtest-session");
     let (rt, server, url) = serve_dir(&dir);
     let out = dir.join("run");
-    cli(&[
-        "loadtest",
-        "--server",
+    load(
         &url,
-        "--scene",
-        "island",
-        "--clients",
         "4",
-        "--duration",
         "4",
-        "--size",
-        "320x240",
-        "--session",
-        "load",
-        "--out",
-        out.to_str().unwrap(),
-    ])
+        &["--size", "320x240", "--session", "load"],
+        &out,
+    )
     .expect("loadtest");
     rt.block_on(server.shutdown()).expect("shutdown");
     let r = summary(&out);
@@ -267,22 +251,7 @@ fn a_load_as_a_demo_session_measures_the_followers_lag() {
     );
     // A session of one client, or with a bad name, is refused.
     for (clients, name) in [("1", "load"), ("2", "bad name")] {
-        let e = cli(&[
-            "loadtest",
-            "--server",
-            &url,
-            "--scene",
-            "island",
-            "--clients",
-            clients,
-            "--duration",
-            "1",
-            "--session",
-            name,
-            "--out",
-            out.to_str().unwrap(),
-        ])
-        .expect_err("refused");
+        let e = load(&url, clients, "1", &["--session", name], &out).expect_err("refused");
         assert!(format!("{e:#}").contains("--session"), "{e:#}");
     }
 }
@@ -395,23 +364,13 @@ fn a_bound_on_outstanding_pages_keeps_the_servers_queue_within_it() {
     let (dir, _) = scenes("loadtest-bound");
     let (rt, server, url) = serve_dir(&dir);
     let out = dir.join("run");
-    cli(&[
-        "loadtest",
-        "--server",
+    load(
         &url,
-        "--scene",
-        "island",
-        "--clients",
         "3",
-        "--duration",
         "2",
-        "--size",
-        "320x240",
-        "--max-outstanding",
-        "2",
-        "--out",
-        out.to_str().unwrap(),
-    ])
+        &["--size", "320x240", "--max-outstanding", "2"],
+        &out,
+    )
     .expect("loadtest");
     rt.block_on(server.shutdown()).expect("shutdown");
     let r = summary(&out);
@@ -425,22 +384,7 @@ fn a_bound_on_outstanding_pages_keeps_the_servers_queue_within_it() {
     assert!(!depths.is_empty());
     assert!(depths.iter().all(|&d| d <= 3.0 * 3.0), "{depths:?}");
     assert!(
-        cli(&[
-            "loadtest",
-            "--server",
-            &url,
-            "--scene",
-            "island",
-            "--clients",
-            "1",
-            "--duration",
-            "1",
-            "--max-outstanding",
-            "0",
-            "--out",
-            out.to_str().unwrap()
-        ])
-        .is_err(),
+        load(&url, "1", "1", &["--max-outstanding", "0"], &out).is_err(),
         "a bound of 0 is refused"
     );
 }
