@@ -400,9 +400,10 @@ pub struct BenchPlpArgs {
     /// PLP's non-star-shaped penalty, in full cells of solidity.
     #[arg(long, default_value_t = farfield_traverse::plp::DEFAULT_STAR_PENALTY)]
     pub star_penalty: f64,
-    /// What a projected cell passes on: `count` (the paper's |A| / ρmax)
-    /// or `coverage` (its triangles' area over its cross-section).
-    #[arg(long, default_value = "count")]
+    /// What a projected cell passes on: `coverage` (its triangles' area
+    /// over its cross-section, the default) or `count` (the paper's
+    /// |A| / ρmax).
+    #[arg(long, default_value = "coverage")]
     pub solidity: farfield_traverse::plp::Solidity,
     /// Print the paper's Table 1 row beside ours: `city` or `cars`.
     #[arg(long, value_parser = ["city", "cars"])]

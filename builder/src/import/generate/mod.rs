@@ -21,8 +21,9 @@
 //!   body shell with window openings around a dense V8 engine) in a row
 //!   along x, about 810 000 triangles by default. Params:
 //!   `seed` (1), `cars` (5, 1..=1000), `detail` (1, 0.1..=8, scales every
-//!   tessellation count), `body` (1, 0.1..=8, scales the body shell's grid
-//!   on top of it).
+//!   tessellation count), `body` (0.4, 0.1..=8, scales the body shell's
+//!   grid on top of it; 1 is 110 rings of 80 quads) and `wheels` (0.4,
+//!   0.1..=8, the wheels').
 //!
 //! `city` and `cars` come with camera paths (`paths.rs`, [`camera_path`]):
 //! a street-level walk and an orbit of the row, one keyframe per frame.
@@ -75,7 +76,7 @@ const ISLAND_KEYS: [&str; 6] = [
     "height",
 ];
 const CITY_KEYS: [&str; 4] = ["seed", "grid", "furniture", "segments"];
-const CARS_KEYS: [&str; 4] = ["seed", "cars", "detail", "body"];
+const CARS_KEYS: [&str; 5] = ["seed", "cars", "detail", "body", "wheels"];
 
 /// Builds the procedural scene `name` (without the `gen:` prefix) from
 /// `params`; see the module docs for names and params.
@@ -169,6 +170,12 @@ fn cars_params(params: &Params) -> Result<cars::CarsParams, ImportError> {
         body: p.range(
             "body",
             cars::DEFAULT_BODY,
+            cars::MIN_DETAIL,
+            cars::MAX_DETAIL,
+        )?,
+        wheels: p.range(
+            "wheels",
+            cars::DEFAULT_WHEELS,
             cars::MIN_DETAIL,
             cars::MAX_DETAIL,
         )?,
@@ -568,7 +575,7 @@ mod tests {
             got,
             (
                 0x4da2_eb49_6e75_251d,
-                0xc4c0_4133_66e3_3ac3,
+                0x8741_750a_2c8d_ce18,
                 0x21da_3101_81b6_764e
             ),
             "generator output changed: {got:#x?}"
@@ -686,7 +693,9 @@ mod tests {
             let c = format!("cars={cars}");
             let keys = path("cars", &[&c]);
             check_times(&keys, 200);
-            let scene = gen_ok("cars", &[&c, "detail=0.2"]);
+            // Wheels at full tessellation keep the row's lowest point on
+            // the ground, as at the default detail.
+            let scene = gen_ok("cars", &[&c, "detail=0.2", "wheels=1"]);
             let (lo, hi) = bounds(&scene.geometries[0]);
             let boxes: Vec<(DVec3, DVec3)> = scene
                 .instances

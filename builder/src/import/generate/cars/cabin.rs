@@ -5,11 +5,7 @@ use super::*;
 /// Firewall, dashboard, steering wheel and four seats.
 pub(super) fn cabin(t: &Tess) -> Mesh {
     let mut m = Mesh::default();
-    m.add_box(
-        DVec3::new(0.72, -0.6, 0.38),
-        DVec3::new(0.75, 0.6, 0.88),
-        DARK,
-    );
+    firewall(&mut m);
     m.add_box(
         DVec3::new(0.45, -0.62, 0.72),
         DVec3::new(0.68, 0.62, 0.88),
@@ -38,6 +34,82 @@ pub(super) fn cabin(t: &Tess) -> Mesh {
         }
     }
     m
+}
+
+/// The firewall between cabin and engine bay, x from [`FIREWALL`].0 to .1:
+/// a prism whose outline follows the body's cross-section from the floor
+/// up to the roof, so that no line of sight through the windshield passes
+/// over it into the engine bay (a real car's bulkhead meets its cowl).
+fn firewall(m: &mut Mesh) {
+    const FOOT: f64 = 0.38;
+    const STEP: f64 = 0.01;
+    let (x0, x1) = FIREWALL;
+    // Half-width at height z that keeps both faces well inside the inner
+    // surface (0.9 of its level leaves room for the coarsest facets).
+    let half_width = |z: f64| {
+        let inside = |y: f64| {
+            [x0, x1]
+                .iter()
+                .all(|&x| inner_level(DVec3::new(x, y, z)) < 0.9)
+        };
+        if !inside(0.0) {
+            return 0.0;
+        }
+        let (mut lo, mut hi) = (0.0, WIDTH);
+        for _ in 0..40 {
+            let mid = 0.5 * (lo + hi);
+            if inside(mid) { lo = mid } else { hi = mid }
+        }
+        lo
+    };
+    // The right side going up, then the left side coming down:
+    // counter-clockwise seen from +x (y to the right, z up).
+    let mut right = Vec::new();
+    let mut z = FOOT;
+    loop {
+        let w = half_width(z);
+        if w < 0.02 {
+            break;
+        }
+        right.push((w, z));
+        z += STEP;
+    }
+    let outline: Vec<(f64, f64)> = right
+        .iter()
+        .copied()
+        .chain(right.iter().rev().map(|&(w, z)| (-w, z)))
+        .collect();
+    add_prism(m, &outline, x0, x1, DARK);
+}
+
+/// A prism along x from `x0` to `x1` over a convex `outline` of (y, z)
+/// points, counter-clockwise seen from +x: side quads and two caps fanned
+/// from the outline's centroid, all facing out.
+fn add_prism(m: &mut Mesh, outline: &[(f64, f64)], x0: f64, x1: f64, color: Rgb8) {
+    let n = outline.len();
+    if n < 3 {
+        return;
+    }
+    let (sy, sz) = outline
+        .iter()
+        .fold((0.0, 0.0), |(a, b), &(y, z)| (a + y, b + z));
+    let (cy, cz) = (sy / n as f64, sz / n as f64);
+    let c0 = m.vertex(DVec3::new(x0, cy, cz), color);
+    let c1 = m.vertex(DVec3::new(x1, cy, cz), color);
+    let near: Vec<u32> = outline
+        .iter()
+        .map(|&(y, z)| m.vertex(DVec3::new(x0, y, z), color))
+        .collect();
+    let far: Vec<u32> = outline
+        .iter()
+        .map(|&(y, z)| m.vertex(DVec3::new(x1, y, z), color))
+        .collect();
+    for k in 0..n {
+        let k1 = (k + 1) % n;
+        m.triangle(c1, far[k], far[k1]);
+        m.triangle(c0, near[k1], near[k]);
+        m.quad(near[k], near[k1], far[k1], far[k]);
+    }
 }
 
 /// Four wheels: tire, rim, hub cap, five lug nuts each.

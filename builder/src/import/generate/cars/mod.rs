@@ -8,8 +8,9 @@
 //!
 //! - a **shell** with real thickness: an outer surface facing out, an
 //!   inner surface facing the cabin, and rim quads joining the two round
-//!   every opening (windshield, rear window, side windows, wheel arches),
-//!   so the shell is one closed solid. Its shape is a superquadric
+//!   every opening (windshield, rear window, side windows), so the shell
+//!   is one closed solid. The fenders are closed over the tires' tops (no
+//!   wheel arches), so only the windows lead inside. Its shape is a superquadric
 //!   (`x^4 + y^4 + z^4 = 1` scaled to the car) with the roof lowered over
 //!   hood and trunk, a flatter belly and a narrower top, tessellated on a
 //!   latitude-longitude grid whose poles are the front and rear ends.
@@ -18,13 +19,17 @@
 //!   heads and valve covers with bolts, intake runners, exhaust headers,
 //!   spark plugs and wires, the front pulleys with their belt, fan,
 //!   radiator and hoses. It is the larger share of the triangles.
-//! - a **cabin**: firewall, dashboard, steering wheel, four seats.
+//! - a **cabin**: a firewall that fills the body's cross-section up to the
+//!   roof (nothing is seen of the engine through the windshield),
+//!   dashboard, steering wheel, four seats.
 //! - four **wheels**: tire (torus), rim, hub and lug nuts.
 //!
 //! Every part is a closed, outward-facing shape of its own (`shapes.rs`).
 //! The car is one geometry placed `cars` times along x by instances, so any
 //! number of copies costs one mesh. `detail` scales every tessellation
-//! count; `seed` picks the paint, the engine's colors and small variations.
+//! count, `body` and `wheels` those two parts' on top of it (coarse by
+//! default, as a CAD model's panels are: see [`DEFAULT_BODY`]); `seed`
+//! picks the paint, the engine's colors and small variations.
 
 use glam::{DAffine3, DVec3};
 
@@ -54,8 +59,19 @@ pub const MAX_CARS: u32 = 1000;
 /// 5CBEM.
 pub const DEFAULT_DETAIL: f64 = 1.0;
 pub const MIN_DETAIL: f64 = 0.1;
-pub const DEFAULT_BODY: f64 = 1.0;
+/// The body shell's and the wheels' tessellation on top of `detail`: 44
+/// rings of 32 quads, tires of 22 by 10. Coarse beside the engine, as a
+/// CAD model's large panels are: at the orbit's distance a panel triangle
+/// covers a few pixels, so most of a body's front-facing triangles are
+/// visible. At 1 (110 rings of 80 quads) they are finer than the pixels
+/// they cover, and the visible set is the few that happen to win a pixel
+/// (docs/experiments.md).
+pub const DEFAULT_BODY: f64 = 0.4;
+pub const DEFAULT_WHEELS: f64 = 0.4;
 pub const MAX_DETAIL: f64 = 8.0;
+/// The engine's tessellation on top of `detail`: with the default body and
+/// wheels, five cars come to about 810 000 triangles.
+const ENGINE_DETAIL: f64 = 1.16;
 
 const PI: f64 = std::f64::consts::PI;
 const TAU: f64 = std::f64::consts::TAU;
@@ -69,6 +85,8 @@ const CENTRE_Z: f64 = HEIGHT - SEMI.z;
 const BELLY: f64 = 0.64;
 /// How much narrower the body gets toward the roof.
 const TUMBLE: f64 = 0.18;
+/// The firewall's faces (x): behind the engine, in front of the dashboard.
+const FIREWALL: (f64, f64) = (0.72, 0.75);
 /// Wheel centres (x, |y|, z) and tire radii (ring, tube).
 const WHEEL: DVec3 = DVec3::new(1.42, 0.8, 0.34);
 const TIRE: (f64, f64) = (0.24, 0.095);
@@ -96,15 +114,15 @@ pub struct CarsParams {
     /// Scales every tessellation count (1: the default scene).
     pub detail: f64,
     /// Scales the body shell's grid on top of `detail` (1: 110 rings of 80
-    /// quads). Below 1 the body is coarse beside a fine engine, as a CAD
-    /// body's large panels are; the PLP coverage measured on it shows how
-    /// much the ratio depends on that (docs/experiments.md).
+    /// quads; [`DEFAULT_BODY`]).
     pub body: f64,
+    /// Scales the wheels' tessellation on top of `detail` ([`DEFAULT_WHEELS`]).
+    pub wheels: f64,
 }
 
 /// The scene: one car mesh placed `cars` times, PITCH apart along +x.
 pub fn cars(p: &CarsParams) -> Scene {
-    let car = Car::new(p.seed, p.detail, p.body).mesh();
+    let car = Car::new(p.seed, p.detail, p.body, p.wheels).mesh();
     Scene {
         geometries: vec![car.into_geometry("gen:cars car")],
         instances: (0..p.cars)
@@ -131,15 +149,15 @@ struct Car {
 }
 
 impl Car {
-    fn new(seed: u64, detail: f64, body: f64) -> Self {
+    fn new(seed: u64, detail: f64, body: f64, wheel_detail: f64) -> Self {
         let mut rng = Rng::new(hash(seed, 0xCA5));
         let paint = PAINTS[rng.below(PAINTS.len() as u64) as usize];
         let t = Tess::new(detail);
         Self {
             shell: shell(&t, body, paint),
-            engine: engine(&t, &mut rng),
+            engine: engine(&Tess::new(detail * ENGINE_DETAIL), &mut rng),
             cabin: cabin(&t),
-            wheels: wheels(&t),
+            wheels: wheels(&Tess::new(detail * wheel_detail)),
         }
     }
 
@@ -213,7 +231,7 @@ mod tests {
     #[test]
     fn every_part_is_closed_and_outward() {
         for detail in [0.1, 0.5, DEFAULT_DETAIL] {
-            let car = Car::new(1, detail, DEFAULT_BODY);
+            let car = Car::new(1, detail, DEFAULT_BODY, DEFAULT_WHEELS);
             let s = &car.shell;
             assert_eq!(
                 closed_parts(&s.positions, &s.triangles),
@@ -228,9 +246,9 @@ mod tests {
 
     #[test]
     fn a_coarser_body_is_still_one_closed_shell_round_the_same_engine() {
-        let fine = Car::new(1, DEFAULT_DETAIL, DEFAULT_BODY);
-        for body in [0.1, 0.4] {
-            let coarse = Car::new(1, DEFAULT_DETAIL, body);
+        let fine = Car::new(1, DEFAULT_DETAIL, 1.0, DEFAULT_WHEELS);
+        for body in [0.1, DEFAULT_BODY] {
+            let coarse = Car::new(1, DEFAULT_DETAIL, body, DEFAULT_WHEELS);
             let s = &coarse.shell;
             assert_eq!(closed_parts(&s.positions, &s.triangles), Ok(1), "{body}");
             assert!(
@@ -246,7 +264,7 @@ mod tests {
     #[test]
     fn the_shell_has_openings_with_rims() {
         let t = Tess::new(1.0);
-        let s = shell(&t, DEFAULT_BODY, PAINTS[0]);
+        let s = shell(&t, 1.0, PAINTS[0]);
         let rows = t.count(110.0) as usize;
         let around = 4 * t.count(20.0) as usize;
         // Two full surfaces would be 2 * 2 * around * (rows - 1) triangles.
@@ -269,9 +287,77 @@ mod tests {
         assert!(rims > 200, "{rims}");
     }
 
+    /// Only the windows open the body: every rim (a quad joining the outer
+    /// and inner surfaces round an opening) is above the body's middle, so
+    /// no wheel arch leads into the engine bay.
+    #[test]
+    fn the_only_openings_are_windows() {
+        for body in [0.1, DEFAULT_BODY, 1.0] {
+            let t = Tess::new(1.0);
+            let s = shell(&t, body, PAINTS[0]);
+            let rows = t.count(110.0 * body).max(8) as usize;
+            let around = 4 * t.count(20.0 * body).max(2) as usize;
+            let outer_count = 2 + (rows - 1) * around;
+            let mut rims = 0;
+            for tri in &s.triangles {
+                let outer = tri.iter().any(|&i| (i as usize) < outer_count);
+                let inner = tri.iter().any(|&i| i as usize >= outer_count);
+                if outer && inner {
+                    rims += 1;
+                    for &i in tri {
+                        let p = s.positions[i as usize];
+                        assert!(p.z > CENTRE_Z, "body {body}: a rim at {p}");
+                    }
+                }
+            }
+            assert!(rims > 0, "body {body}: no windows");
+        }
+    }
+
+    /// The firewall fills the body's cross-section from its foot to the
+    /// roof: a point of that plane well inside the body is covered by its
+    /// cabin-side face, so no line of sight through the windshield reaches
+    /// the engine bay.
+    #[test]
+    fn the_firewall_closes_the_engine_bay() {
+        let cabin = Car::new(1, 1.0, DEFAULT_BODY, DEFAULT_WHEELS).cabin;
+        // The firewall's faces toward the engine bay (x = FIREWALL.1).
+        let face: Vec<[DVec3; 3]> = cabin
+            .triangles
+            .iter()
+            .map(|t| t.map(|i| cabin.positions[i as usize]))
+            .filter(|t| t.iter().all(|p| p.x == FIREWALL.1))
+            .collect();
+        let covered = |y: f64, z: f64| {
+            face.iter().any(|t| {
+                let side = |a: DVec3, b: DVec3| (b.y - a.y) * (z - a.z) - (b.z - a.z) * (y - a.y);
+                let s = [side(t[0], t[1]), side(t[1], t[2]), side(t[2], t[0])];
+                s.iter().all(|&v| v >= 0.0) || s.iter().all(|&v| v <= 0.0)
+            })
+        };
+        let x = 0.5 * (FIREWALL.0 + FIREWALL.1);
+        let mut checked = 0;
+        for iz in 0..100 {
+            let z = 0.40 + 0.01 * f64::from(iz);
+            for iy in -100..=100 {
+                let y = 0.01 * f64::from(iy);
+                if inner_level(DVec3::new(x, y, z)) >= 0.8 {
+                    continue;
+                }
+                checked += 1;
+                assert!(covered(y, z), "({x}, {y}, {z}) is open");
+            }
+        }
+        assert!(checked > 5000, "{checked}");
+        assert_eq!(
+            closed_parts(&cabin.positions, &cabin.triangles).map(|n| n > 1),
+            Ok(true)
+        );
+    }
+
     #[test]
     fn the_engine_and_cabin_are_inside_the_body() {
-        let car = Car::new(3, 1.0, DEFAULT_BODY);
+        let car = Car::new(3, 1.0, DEFAULT_BODY, DEFAULT_WHEELS);
         for part in [&car.engine, &car.cabin] {
             for &p in &part.positions {
                 assert!(
@@ -288,7 +374,7 @@ mod tests {
     #[test]
     fn the_engine_is_the_larger_share() {
         for detail in [0.5, 1.0, 2.0] {
-            let car = Car::new(1, detail, DEFAULT_BODY);
+            let car = Car::new(1, detail, DEFAULT_BODY, DEFAULT_WHEELS);
             let total = car.mesh().triangle_count();
             let engine = car.engine.triangle_count();
             assert!(
@@ -300,7 +386,7 @@ mod tests {
 
     #[test]
     fn the_car_fits_its_nominal_box() {
-        let (lo, hi) = bounds(&Car::new(1, 1.0, DEFAULT_BODY).mesh());
+        let (lo, hi) = bounds(&Car::new(1, 1.0, DEFAULT_BODY, DEFAULT_WHEELS).mesh());
         let eps = 1e-9;
         assert!(
             lo.x >= -LENGTH / 2.0 - eps && hi.x <= LENGTH / 2.0 + eps,

@@ -38,7 +38,6 @@ pub(super) fn deform(p: DVec3) -> DVec3 {
 }
 
 /// The inverse of [`deform`].
-#[cfg(test)]
 pub(super) fn undeform(q: DVec3) -> DVec3 {
     let z = q.z - CENTRE_Z;
     let h = if z > 0.0 { roof(q.x) } else { BELLY };
@@ -55,7 +54,6 @@ pub(super) fn superquadric(d: DVec3) -> DVec3 {
 }
 
 /// How far inside the body's inner surface `p` is: below 1 inside.
-#[cfg(test)]
 pub(super) fn inner_level(p: DVec3) -> f64 {
     let q = undeform(p) / (SEMI - DVec3::splat(THICKNESS));
     let q2 = q * q;
@@ -72,13 +70,11 @@ pub(super) fn opening(c: DVec3) -> bool {
     let rear = top && (-1.72..-1.4).contains(&x);
     // Front and rear side windows, with a B-pillar between them.
     let sides = side && ((-1.25..-0.42).contains(&x) || (-0.3..0.42).contains(&x));
-    // Wheel arches: round the wheels, on the lower sides.
-    let arch = y > 0.45 && z < 0.0 && {
-        let pz = CENTRE_Z + z * SEMI.z * BELLY;
-        let (dx, dz) = (x.abs() - WHEEL.x, pz - WHEEL.z);
-        dx * dx + dz * dz < 0.42 * 0.42
-    };
-    windshield || rear || sides || arch
+    // No wheel arches: the fenders are closed over the tires' tops (as
+    // fender skirts are), so nothing but the windows leads into the body.
+    // Open arches would let a visibility order walk through empty space
+    // into the engine bay, which a real car's wheel housings close off.
+    windshield || rear || sides
 }
 
 /// The closed body shell (see the module docs).
