@@ -579,7 +579,14 @@ mod tests {
         ]);
         std::fs::write(&path, &bytes).unwrap();
         let e = load_geometry(&path).unwrap_err().to_string();
-        assert!(e.ends_with("point data: the LAZ data is corrupt"), "{e}");
+        // With overflow checks (a debug build) the decoder panics, caught;
+        // without them (release) it reads on to the end of the file. Either
+        // way a clear error, and the process goes on.
+        assert!(
+            e.ends_with("point data: the LAZ data is corrupt")
+                || e.ends_with("header: file ends early (truncated)"),
+            "{e}"
+        );
     }
 
     /// Found by the `las` fuzz target: a GPS-time layer of 0xff bytes in a
