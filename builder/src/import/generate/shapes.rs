@@ -91,6 +91,36 @@ impl Mesh {
         );
     }
 
+    /// A prism along x from `x0` to `x1` over a convex `outline` of (y, z)
+    /// points, counter-clockwise seen from +x: side quads and two caps fanned
+    /// from the outline's centroid, all facing out.
+    pub fn add_prism_x(&mut self, outline: &[(f64, f64)], x0: f64, x1: f64, color: Rgb8) {
+        let n = outline.len();
+        if n < 3 {
+            return;
+        }
+        let (sy, sz) = outline
+            .iter()
+            .fold((0.0, 0.0), |(a, b), &(y, z)| (a + y, b + z));
+        let (cy, cz) = (sy / n as f64, sz / n as f64);
+        let c0 = self.vertex(DVec3::new(x0, cy, cz), color);
+        let c1 = self.vertex(DVec3::new(x1, cy, cz), color);
+        let near: Vec<u32> = outline
+            .iter()
+            .map(|&(y, z)| self.vertex(DVec3::new(x0, y, z), color))
+            .collect();
+        let far: Vec<u32> = outline
+            .iter()
+            .map(|&(y, z)| self.vertex(DVec3::new(x1, y, z), color))
+            .collect();
+        for k in 0..n {
+            let k1 = (k + 1) % n;
+            self.triangle(c1, far[k], far[k1]);
+            self.triangle(c0, near[k1], near[k]);
+            self.quad(near[k], near[k1], far[k1], far[k]);
+        }
+    }
+
     /// A box around `centre` with edges along `half[0..3]`, each the
     /// half-extent vector of one axis (12 triangles). The axes must be
     /// mutually perpendicular; a left-handed set is flipped, which leaves the
@@ -419,6 +449,19 @@ mod tests {
         c.add_cylinder(DVec3::ZERO, DVec3::Z * 2.0, 1.0, 64, RED);
         let v = volume(&c);
         assert!((v - 2.0 * std::f64::consts::PI).abs() < 0.02, "{v}");
+    }
+
+    #[test]
+    fn a_prism_is_closed_outward_and_exact() {
+        let mut m = Mesh::default();
+        let square = [(0.0, 0.0), (1.0, 0.0), (1.0, 1.0), (0.0, 1.0)];
+        m.add_prism_x(&square, 0.0, 2.0, RED);
+        assert_eq!(m.triangle_count(), 4 * 4);
+        assert_eq!(closed_parts(&m.positions, &m.triangles), Ok(1));
+        assert!((volume(&m) - 2.0).abs() < 1e-12, "{}", volume(&m));
+        // Fewer than three points make nothing.
+        m.add_prism_x(&square[..2], 0.0, 2.0, RED);
+        assert_eq!(m.triangle_count(), 16);
     }
 
     #[test]

@@ -79,37 +79,7 @@ fn firewall(m: &mut Mesh) {
         .copied()
         .chain(right.iter().rev().map(|&(w, z)| (-w, z)))
         .collect();
-    add_prism(m, &outline, x0, x1, DARK);
-}
-
-/// A prism along x from `x0` to `x1` over a convex `outline` of (y, z)
-/// points, counter-clockwise seen from +x: side quads and two caps fanned
-/// from the outline's centroid, all facing out.
-fn add_prism(m: &mut Mesh, outline: &[(f64, f64)], x0: f64, x1: f64, color: Rgb8) {
-    let n = outline.len();
-    if n < 3 {
-        return;
-    }
-    let (sy, sz) = outline
-        .iter()
-        .fold((0.0, 0.0), |(a, b), &(y, z)| (a + y, b + z));
-    let (cy, cz) = (sy / n as f64, sz / n as f64);
-    let c0 = m.vertex(DVec3::new(x0, cy, cz), color);
-    let c1 = m.vertex(DVec3::new(x1, cy, cz), color);
-    let near: Vec<u32> = outline
-        .iter()
-        .map(|&(y, z)| m.vertex(DVec3::new(x0, y, z), color))
-        .collect();
-    let far: Vec<u32> = outline
-        .iter()
-        .map(|&(y, z)| m.vertex(DVec3::new(x1, y, z), color))
-        .collect();
-    for k in 0..n {
-        let k1 = (k + 1) % n;
-        m.triangle(c1, far[k], far[k1]);
-        m.triangle(c0, near[k1], near[k]);
-        m.quad(near[k], near[k1], far[k1], far[k]);
-    }
+    m.add_prism_x(&outline, x0, x1, DARK);
 }
 
 /// Four wheels: tire, rim, hub cap, five lug nuts each.

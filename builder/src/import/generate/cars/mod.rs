@@ -261,12 +261,22 @@ mod tests {
         }
     }
 
+    /// The shell's rim triangles: those with both outer and inner vertices
+    /// (the outer surface's come first: two poles and the rings between).
+    fn rims(s: &Mesh, body: f64) -> impl Iterator<Item = &[u32; 3]> {
+        let (rows, around) = grid(&Tess::new(1.0), body);
+        let outer_count = 2 + (rows - 1) * around;
+        s.triangles.iter().filter(move |t| {
+            t.iter().any(|&i| (i as usize) < outer_count)
+                && t.iter().any(|&i| i as usize >= outer_count)
+        })
+    }
+
     #[test]
     fn the_shell_has_openings_with_rims() {
         let t = Tess::new(1.0);
         let s = shell(&t, 1.0, PAINTS[0]);
-        let rows = t.count(110.0) as usize;
-        let around = 4 * t.count(20.0) as usize;
+        let (rows, around) = grid(&t, 1.0);
         // Two full surfaces would be 2 * 2 * around * (rows - 1) triangles.
         let full = 4 * around * (rows - 1);
         assert!(
@@ -275,15 +285,7 @@ mod tests {
             s.triangle_count()
         );
         // Rims: some triangles span the panel, both outer and inner vertices.
-        let outer_count = 2 + (rows - 1) * around;
-        let rims = s
-            .triangles
-            .iter()
-            .filter(|t| {
-                t.iter().any(|&i| (i as usize) < outer_count)
-                    && t.iter().any(|&i| i as usize >= outer_count)
-            })
-            .count();
+        let rims = rims(&s, 1.0).count();
         assert!(rims > 200, "{rims}");
     }
 
@@ -293,30 +295,22 @@ mod tests {
     #[test]
     fn the_only_openings_are_windows() {
         for body in [0.1, DEFAULT_BODY, 1.0] {
-            let t = Tess::new(1.0);
-            let s = shell(&t, body, PAINTS[0]);
-            let rows = t.count(110.0 * body).max(8) as usize;
-            let around = 4 * t.count(20.0 * body).max(2) as usize;
-            let outer_count = 2 + (rows - 1) * around;
-            let mut rims = 0;
-            for tri in &s.triangles {
-                let outer = tri.iter().any(|&i| (i as usize) < outer_count);
-                let inner = tri.iter().any(|&i| i as usize >= outer_count);
-                if outer && inner {
-                    rims += 1;
-                    for &i in tri {
-                        let p = s.positions[i as usize];
-                        assert!(p.z > CENTRE_Z, "body {body}: a rim at {p}");
-                    }
+            let s = shell(&Tess::new(1.0), body, PAINTS[0]);
+            let mut count = 0;
+            for tri in rims(&s, body) {
+                count += 1;
+                for &i in tri {
+                    let p = s.positions[i as usize];
+                    assert!(p.z > CENTRE_Z, "body {body}: a rim at {p}");
                 }
             }
-            assert!(rims > 0, "body {body}: no windows");
+            assert!(count > 0, "body {body}: no windows");
         }
     }
 
     /// The firewall fills the body's cross-section from its foot to the
     /// roof: a point of that plane well inside the body is covered by its
-    /// cabin-side face, so no line of sight through the windshield reaches
+    /// engine-side face, so no line of sight through the windshield reaches
     /// the engine bay.
     #[test]
     fn the_firewall_closes_the_engine_bay() {

@@ -77,11 +77,17 @@ pub(super) fn opening(c: DVec3) -> bool {
     windshield || rear || sides
 }
 
-/// The closed body shell (see the module docs).
-pub(super) fn shell(t: &Tess, body: f64, paint: Rgb8) -> Mesh {
+/// The shell's grid at `body`: rings from front to rear pole, and quads
+/// round each ring.
+pub(super) fn grid(t: &Tess, body: f64) -> (usize, usize) {
     let rows = t.count(110.0 * body).max(8);
     let around = 4 * t.count(20.0 * body).max(2);
-    let (m, n) = (rows as usize, around as usize);
+    (rows as usize, around as usize)
+}
+
+/// The closed body shell (see the module docs).
+pub(super) fn shell(t: &Tess, body: f64, paint: Rgb8) -> Mesh {
+    let (m, n) = grid(t, body);
     // Unit-superquadric points: rings 1..m-1 and the two poles.
     let unit = |j: usize, i: usize| {
         let (sa, ca) = sin_cos(PI * j as f64 / m as f64);
