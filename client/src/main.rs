@@ -15,10 +15,7 @@ static ALLOCATOR: farfield_builder::allocator::HugePageAlloc =
 fn main() -> ExitCode {
     // SAFETY: first thing in `main`, before any thread is started.
     unsafe { farfield_render::quiet_device_select_when_headless() };
-    tracing_subscriber::fmt()
-        .with_env_filter(tracing_subscriber::EnvFilter::from_default_env())
-        .with_writer(std::io::stderr)
-        .init();
+    farfield_serve::logs::init(None);
     match run(Cli::parse()) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {

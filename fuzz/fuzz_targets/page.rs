@@ -112,6 +112,11 @@ fuzz_target!(|data: &[u8]| {
         };
         pages.push(entry(u64::from(i), count));
     }
+    // The directory's copy of the page's checksum is the one it carries
+    // (a client compares the two before anything else).
+    let carried = page
+        .last_chunk::<4>()
+        .map_or(0, |tail| u32::from_le_bytes(*tail));
     pages.push(PageEntry {
         offset: 0,
         length: page.len() as u32,
@@ -120,7 +125,7 @@ fuzz_target!(|data: &[u8]| {
         first_child: h.first_child,
         level_min: h.level_min,
         level_max: h.level_max,
-        checksum: 0,
+        checksum: carried,
     });
     if after > 0 {
         pages.push(entry(h.first_node + u64::from(h.node_count), after));

@@ -24,7 +24,7 @@ use wasm_bindgen::JsCast;
 use wasm_bindgen::closure::Closure;
 use web_sys::{BinaryType, CloseEvent, MessageEvent, WebSocket};
 
-use crate::transport::{Closing, Transport, TransportEvent};
+use crate::transport::{Closing, Target, Transport, TransportEvent};
 
 type Events = Rc<RefCell<VecDeque<TransportEvent>>>;
 
@@ -37,8 +37,21 @@ struct Connection {
 }
 
 impl Connection {
-    fn open(url: &str, hello: Vec<u8>) -> Result<Self, String> {
-        let socket = WebSocket::new(url).map_err(|e| format!("connect {url}: {e:?}"))?;
+    /// Opens a socket to `target`; a token goes as a subprotocol, the one
+    /// field of the handshake a page may set ([`farfield_protocol::auth`]).
+    fn open(target: &Target, hello: Vec<u8>) -> Result<Self, String> {
+        let url = target.url.as_str();
+        let socket = match &target.token {
+            None => WebSocket::new(url),
+            Some(token) => {
+                let protocols = js_sys::Array::of2(
+                    &farfield_protocol::auth::SUBPROTOCOL.into(),
+                    &farfield_protocol::auth::token_subprotocol(token).into(),
+                );
+                WebSocket::new_with_str_sequence(url, &protocols)
+            }
+        }
+        .map_err(|e| format!("connect {url}: {e:?}"))?;
         socket.set_binary_type(BinaryType::Arraybuffer);
         let events: Events = Rc::default();
         let opened = Rc::new(std::cell::Cell::new(false));
@@ -130,9 +143,9 @@ impl BrowserTransport {
 }
 
 impl Transport for BrowserTransport {
-    fn connect(&mut self, url: &str, hello: Vec<u8>) {
+    fn connect(&mut self, target: &Target, hello: Vec<u8>) {
         self.close();
-        match Connection::open(url, hello) {
+        match Connection::open(target, hello) {
             Ok(c) => self.connection = Some(c),
             Err(reason) => self.pending.push_back(TransportEvent::Closed {
                 reason,

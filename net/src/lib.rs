@@ -20,6 +20,8 @@
 
 #[cfg(target_arch = "wasm32")]
 pub mod browser;
+#[cfg(not(target_arch = "wasm32"))]
+pub mod certificate;
 pub mod queue;
 pub mod session;
 pub mod stats;
@@ -36,5 +38,5 @@ pub use session::{
     SessionOptions,
 };
 pub use stats::{FailedPage, NetStats};
-pub use transport::{Closing, Transport, TransportEvent};
-pub use url::{stream_url, with_token};
+pub use transport::{Closing, Target, Transport, TransportEvent};
+pub use url::stream_url;

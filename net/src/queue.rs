@@ -13,7 +13,7 @@ use std::time::Duration;
 
 use web_time::Instant;
 
-use crate::transport::{Transport, TransportEvent};
+use crate::transport::{Target, Transport, TransportEvent};
 
 /// Both ends of a queued connection (clones share them).
 #[derive(Debug, Clone, Default)]
@@ -37,7 +37,7 @@ struct Inner {
     finished: bool,
     connects: Vec<String>,
     /// A connection asked for and not yet taken by the driver.
-    pending_connect: Option<String>,
+    pending_connect: Option<Target>,
     closes: usize,
     /// The session abandoned its connection since the driver last looked.
     pending_close: bool,
@@ -121,8 +121,8 @@ impl QueueTransport {
         self.lock().closes
     }
 
-    /// The URL of a connection the session asked for since the last call.
-    pub fn take_connect(&self) -> Option<String> {
+    /// The connection the session asked for since the last call.
+    pub fn take_connect(&self) -> Option<Target> {
         self.lock().pending_connect.take()
     }
 
@@ -135,10 +135,10 @@ impl QueueTransport {
 impl Transport for QueueTransport {
     /// Records the attempt for the driver; `hello` is queued as the first
     /// frame to send.
-    fn connect(&mut self, url: &str, hello: Vec<u8>) {
+    fn connect(&mut self, target: &Target, hello: Vec<u8>) {
         let mut inner = self.lock();
-        inner.connects.push(url.to_owned());
-        inner.pending_connect = Some(url.to_owned());
+        inner.connects.push(target.url.clone());
+        inner.pending_connect = Some(target.clone());
         // Nothing of an abandoned connection is reported or sent after this.
         inner.incoming.clear();
         inner.sent = vec![hello];

@@ -32,7 +32,7 @@ use farfield_traverse::WantedPage;
 use web_time::Instant;
 
 use crate::stats::{FailedPage, NetStats};
-use crate::transport::{Closing, Transport, TransportEvent};
+use crate::transport::{Closing, Target, Transport, TransportEvent};
 
 /// Checksum failures after which a page is given up on.
 pub const MAX_PAGE_FAILURES: u32 = 3;
@@ -53,7 +53,7 @@ fn hello(options: &SessionOptions) -> Vec<u8> {
 /// What a client announces in its hello (`max_in_flight_bytes`,
 /// `allow_push`), how long it tries to connect at first, and what it shows
 /// a server that wants a token or speaks TLS with a private certificate.
-#[derive(Debug, Clone)]
+#[derive(Clone)]
 pub struct SessionOptions {
     pub max_in_flight_bytes: u64,
     pub allow_push: bool,
@@ -62,8 +62,9 @@ pub struct SessionOptions {
     /// at the render's timeout. Once connected, a session retries for as
     /// long as its owner waits (servers restart).
     pub first_connect_grace: Duration,
-    /// The server's access token, sent as the `access_token` query
-    /// parameter (what a browser's `WebSocket` can send too).
+    /// The server's access token, sent in a header (natively) or a
+    /// websocket subprotocol (in a browser), never in the URL
+    /// ([`crate::Target`]); `Debug` does not show it.
     pub token: Option<String>,
     /// A certificate authority (PEM) to trust for `wss://` servers instead
     /// of the public roots; the native transport only.
@@ -74,6 +75,19 @@ pub struct SessionOptions {
     /// arrive, highest priority first, so no request waits behind a long
     /// queue of the client's own.
     pub max_outstanding: Option<usize>,
+}
+
+impl std::fmt::Debug for SessionOptions {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("SessionOptions")
+            .field("max_in_flight_bytes", &self.max_in_flight_bytes)
+            .field("allow_push", &self.allow_push)
+            .field("first_connect_grace", &self.first_connect_grace)
+            .field("token", &self.token.as_ref().map(|_| "<redacted>"))
+            .field("ca_cert", &self.ca_cert)
+            .field("max_outstanding", &self.max_outstanding)
+            .finish()
+    }
 }
 
 impl Default for SessionOptions {
@@ -175,7 +189,7 @@ struct Wish {
 #[derive(Debug)]
 pub struct Session<T: Transport> {
     transport: T,
-    url: String,
+    target: Target,
     options: SessionOptions,
     link: Link,
     connected_once: bool,
@@ -206,13 +220,18 @@ pub struct Session<T: Transport> {
 }
 
 impl<T: Transport> Session<T> {
-    /// Starts connecting to `url` (see [`crate::stream_url`]).
+    /// Starts connecting to `url` (see [`crate::stream_url`]), with the
+    /// options' token if they have one.
     pub fn open(mut transport: T, url: String, options: SessionOptions) -> Self {
-        transport.connect(&url, hello(&options));
+        let target = Target {
+            url,
+            token: options.token.clone(),
+        };
+        transport.connect(&target, hello(&options));
         let first_deadline = Instant::now() + options.first_connect_grace;
         Self {
             transport,
-            url,
+            target,
             options,
             link: Link::Connecting,
             connected_once: false,
@@ -298,14 +317,14 @@ impl<T: Transport> Session<T> {
         let now = Instant::now();
         match self.link {
             Link::Waiting { until } if now >= until => {
-                self.transport.connect(&self.url, hello(&self.options));
+                self.transport.connect(&self.target, hello(&self.options));
                 self.link = Link::Connecting;
             }
             // An attempt may not outlast the grace (a silently dropped
             // connect would otherwise wait minutes).
             Link::Connecting if !self.connected_once && now >= self.first_deadline => {
                 self.transport.close();
-                let reason = format!("connect {}: no answer", self.url);
+                let reason = format!("connect {}: no answer", self.target.url);
                 return Err(self.give_up_reaching(&reason));
             }
             _ => {}

@@ -40,14 +40,43 @@ pub enum Closing {
     Failed,
 }
 
+/// Where a connection goes, and the token it proves itself with: sent in
+/// an `Authorization` header natively, in a websocket subprotocol from a
+/// browser ([`farfield_protocol::auth`]), and never in the URL, which
+/// proxies log and errors print. Its `Debug` does not show the token.
+#[derive(Clone, PartialEq, Eq)]
+pub struct Target {
+    pub url: String,
+    pub token: Option<String>,
+}
+
+impl Target {
+    /// A target that needs no token.
+    pub fn open(url: impl Into<String>) -> Self {
+        Self {
+            url: url.into(),
+            token: None,
+        }
+    }
+}
+
+impl std::fmt::Debug for Target {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Target")
+            .field("url", &self.url)
+            .field("token", &self.token.as_ref().map(|_| "<redacted>"))
+            .finish()
+    }
+}
+
 /// Binary frames to and from one server, one connection at a time.
 pub trait Transport: std::fmt::Debug {
-    /// Starts a connection attempt to `url`, abandoning any current one
+    /// Starts a connection attempt to `target`, abandoning any current one
     /// (nothing of an abandoned connection is reported or sent after this
     /// call). `hello` is the first frame, sent the moment the connection
     /// opens, whenever the owner next pumps the session: a server waits
     /// for it only so long.
-    fn connect(&mut self, url: &str, hello: Vec<u8>);
+    fn connect(&mut self, target: &Target, hello: Vec<u8>);
     /// Queues a frame on the open connection; dropped when none is open
     /// (the session asks again after the next connection).
     fn send(&mut self, frame: Vec<u8>);
@@ -67,8 +96,8 @@ pub trait Transport: std::fmt::Debug {
 }
 
 impl<T: Transport + ?Sized> Transport for Box<T> {
-    fn connect(&mut self, url: &str, hello: Vec<u8>) {
-        (**self).connect(url, hello);
+    fn connect(&mut self, target: &Target, hello: Vec<u8>) {
+        (**self).connect(target, hello);
     }
 
     fn send(&mut self, frame: Vec<u8>) {

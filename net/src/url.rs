@@ -1,15 +1,5 @@
-//! Where a scene streams from: the one place its URL is spelled.
-
-/// `url` with the access token `token` added as its `access_token` query
-/// parameter (percent-encoded), or `url` itself without one.
-pub fn with_token(url: &str, token: Option<&str>) -> String {
-    let Some(token) = token else {
-        return url.to_owned();
-    };
-    let encoded = farfield_protocol::percent::percent_encode(token);
-    let sep = if url.contains('?') { '&' } else { '?' };
-    format!("{url}{sep}access_token={encoded}")
-}
+//! Where a scene streams from: the one place its URL is spelled. (A token
+//! never goes in it: see [`crate::Target`].)
 
 /// The websocket URL of a scene's stream. `server` is `http://host:port`,
 /// `https://host:port`, `ws://...`, `wss://...` or a bare `host:port`.
@@ -38,10 +28,6 @@ mod tests {
 
     #[test]
     fn urls() {
-        assert_eq!(
-            with_token("ws://h/s", Some("a b/é")),
-            "ws://h/s?access_token=a%20b%2F%C3%A9"
-        );
         assert_eq!(
             stream_url("http://127.0.0.1:80/", "a"),
             "ws://127.0.0.1:80/scenes/a/stream"

@@ -24,7 +24,7 @@ use tokio_tungstenite::{MaybeTlsStream, WebSocketStream};
 
 use crate::queue::QueueTransport;
 use crate::session::{Session, SessionError, SessionEvent};
-use crate::transport::{Closing, Transport, TransportEvent};
+use crate::transport::{Closing, Target, Transport, TransportEvent};
 
 /// The native websocket transport.
 #[derive(Debug)]
@@ -52,10 +52,11 @@ impl WebSocketTransport {
     }
 
     /// Like [`WebSocketTransport::new`], but a `wss://` server's certificate
-    /// must chain to the authority in `ca_cert` (PEM) instead: a private or
-    /// self-signed server.
+    /// must chain to an authority in `ca_cert` (PEM), or be one of its
+    /// certificates (pinned), instead: a private or self-signed server
+    /// ([`crate::certificate`]).
     pub fn trusting(ca_cert: Option<&std::path::Path>) -> std::io::Result<Self> {
-        let tls = ca_cert.map(client_config).transpose()?;
+        let tls = ca_cert.map(crate::certificate::client_config).transpose()?;
         let runtime = tokio::runtime::Builder::new_current_thread()
             .enable_all()
             .build()?;
@@ -83,7 +84,7 @@ impl Drop for WebSocketTransport {
 }
 
 impl Transport for WebSocketTransport {
-    fn connect(&mut self, url: &str, hello: Vec<u8>) {
+    fn connect(&mut self, target: &Target, hello: Vec<u8>) {
         self.close();
         let (event_tx, events) = mpsc::channel();
         let (outgoing, out_rx) = async_mpsc::unbounded_channel();
@@ -92,7 +93,7 @@ impl Transport for WebSocketTransport {
         let task = self
             .runtime
             .spawn(connection(
-                url.to_owned(),
+                target.clone(),
                 self.tls.clone(),
                 event_tx,
                 out_rx,
@@ -159,12 +160,12 @@ impl Transport for WebSocketTransport {
 /// One connection: connect, then pass frames both ways until either side
 /// ends it. Always ends by reporting [`TransportEvent::Closed`].
 async fn connection(
-    url: String,
+    target: Target,
     tls: Option<Arc<rustls::ClientConfig>>,
     events: mpsc::Sender<TransportEvent>,
     mut outgoing: async_mpsc::UnboundedReceiver<Vec<u8>>,
 ) {
-    let (reason, how) = match run(&url, tls, &events, &mut outgoing).await {
+    let (reason, how) = match run(&target, tls, &events, &mut outgoing).await {
         Ok(()) => return,
         Err(end) => end,
     };
@@ -173,12 +174,12 @@ async fn connection(
 
 /// `Ok` when the receiver went away; otherwise why the connection ended.
 async fn run(
-    url: &str,
+    target: &Target,
     tls: Option<Arc<rustls::ClientConfig>>,
     events: &mpsc::Sender<TransportEvent>,
     outgoing: &mut async_mpsc::UnboundedReceiver<Vec<u8>>,
 ) -> Result<(), (String, Closing)> {
-    let socket = open(url, tls).await?;
+    let socket = open(target, tls).await?;
     if events.send(TransportEvent::Opened).is_err() {
         return Ok(());
     }
@@ -204,39 +205,39 @@ async fn run(
 /// A client websocket.
 type Socket = WebSocketStream<MaybeTlsStream<tokio::net::TcpStream>>;
 
-/// A TLS client configuration that trusts only the authorities in
-/// `ca_cert` (PEM).
-fn client_config(ca_cert: &std::path::Path) -> std::io::Result<Arc<rustls::ClientConfig>> {
-    use rustls::pki_types::CertificateDer;
-    use rustls::pki_types::pem::PemObject;
-    let bad = |e: String| std::io::Error::other(format!("{}: {e}", ca_cert.display()));
-    let mut roots = rustls::RootCertStore::empty();
-    for cert in CertificateDer::pem_file_iter(ca_cert).map_err(|e| bad(e.to_string()))? {
-        let cert = cert.map_err(|e| bad(e.to_string()))?;
-        roots.add(cert).map_err(|e| bad(e.to_string()))?;
-    }
-    if roots.is_empty() {
-        return Err(bad("no certificate in it".into()));
-    }
-    let config = rustls::ClientConfig::builder()
-        .with_root_certificates(roots)
-        .with_no_client_auth();
-    Ok(Arc::new(config))
-}
-
-/// Connects to `url`; the error is why, and whether the server refused.
+/// Connects to `target`, its token in an `Authorization` header; the error
+/// is why, and whether a retry could change it.
 async fn open(
-    url: &str,
+    target: &Target,
     tls: Option<Arc<rustls::ClientConfig>>,
 ) -> Result<Socket, (String, Closing)> {
+    use tokio_tungstenite::tungstenite::client::IntoClientRequest;
+    let url = target.url.as_str();
+    let mut request = url
+        .into_client_request()
+        .map_err(|e| (format!("connect {url}: {e}"), Closing::Refused))?;
+    if let Some(token) = &target.token {
+        let value = format!("Bearer {token}").parse().map_err(|_| {
+            (
+                "the token holds characters a header cannot carry".to_owned(),
+                Closing::Refused,
+            )
+        })?;
+        request
+            .headers_mut()
+            .insert(tungstenite::http::header::AUTHORIZATION, value);
+    }
     // No Nagle: requests and acknowledgements are small and must not sit
     // waiting for the server's delayed ACKs (40 ms a round trip otherwise).
     let connector = tls.map(tokio_tungstenite::Connector::Rustls);
-    match tokio_tungstenite::connect_async_tls_with_config(url, None, true, connector).await {
+    match tokio_tungstenite::connect_async_tls_with_config(request, None, true, connector).await {
         Ok((socket, _)) => Ok(socket),
         Err(e) => Err(match refusal(url, &e) {
             Some(reason) => (reason, Closing::Refused),
-            None => (format!("connect {url}: {e}"), Closing::Failed),
+            None => match crate::certificate::untrusted(&e) {
+                Some(reason) => (format!("connect {url}: {reason}"), Closing::Refused),
+                None => (format!("connect {url}: {e}"), Closing::Failed),
+            },
         }),
     }
 }
@@ -305,9 +306,9 @@ pub async fn drive_wire<E>(
         if wire.take_close() {
             (socket, connecting) = (None, None);
         }
-        if let Some(url) = wire.take_connect() {
+        if let Some(target) = wire.take_connect() {
             socket = None;
-            connecting = Some(Box::pin(async move { open(&url, None).await }));
+            connecting = Some(Box::pin(async move { open(&target, None).await }));
         }
         if let Some(attempt) = connecting.as_mut()
             && let Ok(opened) = tokio::time::timeout(TICK, attempt).await

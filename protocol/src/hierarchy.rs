@@ -123,7 +123,8 @@ impl Hierarchy {
     }
 
     /// Verifies page `index` and makes it resident. A page that fails its
-    /// checksum or does not agree with the directory is rejected whole.
+    /// checksum, carries another checksum than the directory's, or does
+    /// not agree with the directory is rejected whole.
     pub fn insert_page(&mut self, index: u32, bytes: &[u8]) -> Result<(), FormatError> {
         let entry = *self
             .header
@@ -133,6 +134,7 @@ impl Hierarchy {
                 page: index,
                 message: format!("no such page ({} pages)", self.header.pages.len()),
             })?;
+        crate::page::check_against_entry(&entry, index, bytes)?;
         let page = match self.header.kind {
             HierarchyKind::Spheres => Page::parse(bytes, index, self.header.node_bytes)?,
             HierarchyKind::Cubes | HierarchyKind::Plp | HierarchyKind::Bsp => {
@@ -587,6 +589,26 @@ mod tests {
             .insert_page(0, &page)
             .unwrap_err();
         assert!(e.to_string().contains("child indices out of range"), "{e}");
+    }
+
+    /// A page replaced by another valid page (its own checksum recomputed)
+    /// is refused: its checksum is not the one the directory holds.
+    #[test]
+    fn a_page_with_a_valid_checksum_other_than_the_directorys_is_refused() {
+        let (header, page) = root_page(2, 1, 2, 3);
+        // The same page with its only record's child count edited, and its
+        // checksum made to fit the edit.
+        let (_, edited) = root_page(3, 1, 2, 3);
+        assert_ne!(page, edited);
+        assert!(
+            Page::parse(&edited, 0, header.node_bytes).is_ok(),
+            "self-consistent"
+        );
+        let mut h = Hierarchy::new(FileHeader::decode(&header.encode()).unwrap()).unwrap();
+        let e = h.insert_page(0, &edited).unwrap_err();
+        assert!(e.to_string().contains("not the directory's"), "{e}");
+        assert!(h.page(0).is_none(), "nothing was made resident");
+        h.insert_page(0, &page).unwrap();
     }
 
     /// A page's children must be exactly the nodes up to the next page's

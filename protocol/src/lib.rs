@@ -28,6 +28,7 @@
 //!   [`messages::ServerMessage`]; [`codec`]: their bytes (bincode 2, in one
 //!   module so it can be swapped); [`percent`]: names and tokens in URLs.
 
+pub mod auth;
 pub mod bsp_codec;
 pub mod camera;
 pub mod codec;

@@ -47,6 +47,51 @@ pub fn claimed_index(page: &[u8]) -> Option<u32> {
     Some(u32::from_le_bytes(bytes.try_into().ok()?))
 }
 
+/// Checks that `bytes`, received or read as page `index`, are the page the
+/// directory `entry` describes: its length and the checksum in its last
+/// four bytes. The page's own checksum only proves the bytes agree with
+/// themselves; a page edited in place with its checksum recomputed passes
+/// it, but not this (the directory is covered by the header's checksum,
+/// which the edit would also have to forge). Both the server, when it
+/// reads a page, and the client, when it receives one, call this before
+/// [`Page::parse`].
+pub fn check_against_entry(
+    entry: &crate::file::PageEntry,
+    index: u32,
+    bytes: &[u8],
+) -> Result<(), FormatError> {
+    if bytes.len() != entry.length as usize {
+        return Err(FormatError::BadPage {
+            page: index,
+            message: format!(
+                "{} bytes where the directory says {}",
+                bytes.len(),
+                entry.length
+            ),
+        });
+    }
+    let tail = bytes
+        .len()
+        .checked_sub(PAGE_CHECKSUM_BYTES)
+        .and_then(|start| bytes.get(start..))
+        .and_then(|tail| <[u8; 4]>::try_from(tail).ok())
+        .ok_or_else(|| FormatError::BadPage {
+            page: index,
+            message: format!("{} bytes is shorter than a checksum", bytes.len()),
+        })?;
+    let stored = u32::from_le_bytes(tail);
+    if stored != entry.checksum {
+        return Err(FormatError::BadPage {
+            page: index,
+            message: format!(
+                "its checksum {stored:#010x} is not the directory's {:#010x}: the page was replaced",
+                entry.checksum
+            ),
+        });
+    }
+    Ok(())
+}
+
 /// Builds a page's bytes from its header and node records; returns the
 /// bytes and their checksum (also stored in the last four bytes).
 pub fn encode_page(header: &PageHeader, records: &[u8]) -> (Vec<u8>, u32) {

@@ -1,9 +1,12 @@
 //! Who may use the server: bearer tokens (each for every scene or for a
 //! list), and which web pages may use it from a browser (CORS).
 //!
-//! A token comes in an `Authorization: Bearer TOKEN` header or, because a
-//! browser's `WebSocket` cannot set headers, an `access_token` query
-//! parameter (RFC 6750, section 2.3). `/healthz` needs none. Without one:
+//! A token comes in an `Authorization: Bearer TOKEN` header (native
+//! clients), in a websocket subprotocol (a browser's `WebSocket` cannot set
+//! headers: [`farfield_protocol::auth`]), or, for the address of a page a
+//! person opens, an `access_token` query parameter (RFC 6750, section
+//! 2.3). No client of ours puts it in a stream's URL, where proxies log
+//! it. `/healthz` needs none. Without one:
 //! 401 with `WWW-Authenticate: Bearer`; a scene the token does not cover is
 //! answered as if it did not exist (404), and `/scenes` lists only what the
 //! token covers.
@@ -36,6 +39,10 @@ pub struct Access {
     /// Origins (`scheme://host[:port]`) whose pages may use the server
     /// besides its own; `*` allows any.
     pub allowed_origins: Vec<String>,
+    /// Host names the server answers to besides its own addresses, its
+    /// loopback names and its certificate's names (a reverse proxy's
+    /// public name); `*` answers any (see [`crate::hosts`]).
+    pub allowed_hosts: Vec<String>,
 }
 
 impl Access {
@@ -68,10 +75,15 @@ impl Access {
         Ok(tokens)
     }
 
-    fn origin_allowed(&self, origin: &str, host: Option<&str>) -> bool {
-        let same = origin
-            .split_once("://")
-            .is_some_and(|(_, authority)| Some(authority) == host);
+    /// Whether a page of `origin` may use the server, reached as `host`
+    /// over `scheme`: the same origin, scheme and all (`http://h` is not
+    /// `https://h`), or one listed.
+    fn origin_allowed(&self, origin: &str, host: Option<&str>, scheme: &str) -> bool {
+        let same = host.is_some_and(|host| {
+            origin.split_once("://").is_some_and(|(s, authority)| {
+                s.eq_ignore_ascii_case(scheme) && authority.eq_ignore_ascii_case(host)
+            })
+        });
         same || self
             .allowed_origins
             .iter()
@@ -99,7 +111,10 @@ fn refuse(status: StatusCode, message: &str) -> Response {
     (status, Json(json!({ "error": message }))).into_response()
 }
 
-/// The token a request carries, if any.
+/// The token a request carries, if any: in `Authorization: Bearer` (native
+/// clients), in a websocket subprotocol (browsers, which cannot set the
+/// header; see [`farfield_protocol::auth`]), or as `?access_token=` (a page
+/// address a person typed or was given).
 fn token_of(request: &Request) -> Option<String> {
     if let Some(value) = request.headers().get(header::AUTHORIZATION)
         && let Ok(value) = value.to_str()
@@ -107,40 +122,19 @@ fn token_of(request: &Request) -> Option<String> {
     {
         return Some(token.trim().to_owned());
     }
+    if let Some(token) = request
+        .headers()
+        .get_all(header::SEC_WEBSOCKET_PROTOCOL)
+        .iter()
+        .filter_map(|v| v.to_str().ok())
+        .find_map(farfield_protocol::auth::token_from_subprotocols)
+    {
+        return Some(token);
+    }
     request.uri().query()?.split('&').find_map(|pair| {
         let value = pair.strip_prefix("access_token=")?;
-        Some(percent_decode(value))
+        Some(farfield_protocol::percent::percent_decode(value))
     })
-}
-
-/// `%XX` escapes and `+` decoded (tokens are usually plain, but a query
-/// string may carry them escaped).
-fn percent_decode(text: &str) -> String {
-    let bytes = text.as_bytes();
-    let mut out = Vec::with_capacity(bytes.len());
-    let mut i = 0;
-    while i < bytes.len() {
-        match bytes[i] {
-            b'%' if i + 2 < bytes.len() => match (hex(bytes[i + 1]), hex(bytes[i + 2])) {
-                (Some(high), Some(low)) => {
-                    out.push(high * 16 + low);
-                    i += 3;
-                    continue;
-                }
-                _ => out.push(b'%'),
-            },
-            b'+' => out.push(b' '),
-            b => out.push(b),
-        }
-        i += 1;
-    }
-    String::from_utf8_lossy(&out).into_owned()
-}
-
-fn hex(digit: u8) -> Option<u8> {
-    char::from(digit)
-        .to_digit(16)
-        .and_then(|d| u8::try_from(d).ok())
 }
 
 /// The middleware in front of every route: origin, then token.
@@ -150,21 +144,47 @@ pub(crate) async fn check(
     next: Next,
 ) -> Response {
     let access = &app.access;
+    let path = request.uri().path();
+    // Health is for probes and load balancers, whatever they call the
+    // server and wherever they are: always open, and it tells nothing.
+    if path == "/healthz" {
+        return next.run(request).await;
+    }
     let origin = request
         .headers()
         .get(header::ORIGIN)
         .and_then(|o| o.to_str().ok())
         .map(str::to_owned);
-    let host = request
-        .headers()
-        .get(header::HOST)
-        .and_then(|h| h.to_str().ok());
+    let host = match request.headers().get(header::HOST).map(|h| h.to_str()) {
+        None => None,
+        Some(Ok(host)) => Some(host),
+        Some(Err(_)) => Some(""),
+    };
+    if !app.hosts.allows(host) {
+        let host = super::quote::prefix(host.unwrap_or_default());
+        tracing::debug!("refused a request for host {host:?}");
+        let mut response = refuse(
+            StatusCode::MISDIRECTED_REQUEST,
+            &format!(
+                "this server does not answer to {host:?} (it answers to {}; add a name with --allowed-host NAME)",
+                app.hosts.describe()
+            ),
+        );
+        // Not this connection's server: it is not kept for another request.
+        response
+            .headers_mut()
+            .insert(header::CONNECTION, HeaderValue::from_static("close"));
+        return response;
+    }
     if let Some(origin) = &origin
-        && !access.origin_allowed(origin, host)
+        && !access.origin_allowed(origin, host, app.scheme)
     {
         return refuse(
             StatusCode::FORBIDDEN,
-            &format!("pages from {origin} may not use this server (see --allow-origin)"),
+            &format!(
+                "pages from {} may not use this server (see --allow-origin)",
+                super::quote::prefix(origin)
+            ),
         );
     }
     if request.method() == Method::OPTIONS && origin.is_some() {
@@ -186,9 +206,8 @@ pub(crate) async fn check(
         cors_headers(&mut response, origin.as_deref());
         return response;
     }
-    // The viewer's code is public (it holds no scene); health is for probes.
-    let path = request.uri().path();
-    let open = path == "/healthz" || path.starts_with("/web/");
+    // The viewer's code is public (it holds no scene).
+    let open = request.uri().path().starts_with("/web/");
     let grant = if access.tokens.is_empty() || open {
         Grant::All
     } else {
@@ -198,7 +217,7 @@ pub(crate) async fn check(
             None => {
                 let mut response = refuse(
                     StatusCode::UNAUTHORIZED,
-                    "a valid token is needed (Authorization: Bearer TOKEN, or ?access_token=TOKEN)",
+                    "a valid token is needed (--token TOKEN, or Authorization: Bearer TOKEN)",
                 );
                 response.headers_mut().insert(
                     header::WWW_AUTHENTICATE,
@@ -247,9 +266,15 @@ mod tests {
             allowed_origins: vec!["https://viewer.example".into()],
             ..Access::default()
         };
-        assert!(access.origin_allowed("http://127.0.0.1:7878", Some("127.0.0.1:7878")));
-        assert!(access.origin_allowed("https://viewer.example", Some("127.0.0.1:7878")));
-        assert!(!access.origin_allowed("https://evil.example", Some("127.0.0.1:7878")));
-        assert_eq!(percent_decode("a%2Fb+c%zz"), "a/b c%zz");
+        let host = Some("127.0.0.1:7878");
+        assert!(access.origin_allowed("http://127.0.0.1:7878", host, "http"));
+        assert!(
+            !access.origin_allowed("https://127.0.0.1:7878", host, "http"),
+            "another scheme is another origin"
+        );
+        assert!(!access.origin_allowed("http://127.0.0.1:7878", host, "https"));
+        assert!(access.origin_allowed("https://viewer.example", host, "http"));
+        assert!(!access.origin_allowed("https://evil.example", host, "http"));
+        assert!(!access.origin_allowed("http://127.0.0.1:7878", None, "http"));
     }
 }

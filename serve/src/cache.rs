@@ -1,6 +1,16 @@
 //! The page cache: hot pages of every scene, shared by all connections,
 //! bounded in bytes.
 //!
+//! Two parts share the bound. Pages a client asked for are kept by
+//! recency (`served`). Pages read ahead of any request (a page's
+//! children, a presenter's extrapolated view) wait apart (`ahead`), in at
+//! most [`AHEAD_SHARE`] of the bound, until a client asks for one, which
+//! moves it to `served`. Read-ahead makes room only by dropping its own
+//! older guesses, never a page a client asked for: under a small cache it
+//! once did, and the disk read 3.2 pages for every page sent. A client's
+//! page makes room by dropping whichever is least recent, a served page
+//! or a guess.
+//!
 //! Values are ready-to-send page frames (the kind byte, then the page's
 //! stored bytes) read straight into the frame, so sending a cached page to
 //! any number of clients is a reference-count increment, never a copy or a
@@ -30,6 +40,19 @@ pub type PageKey = (u32, u32);
 /// at once (and found again by the next read), which bounds the memory a
 /// folder of broken files can cost.
 pub const MAX_VERDICTS: usize = 1 << 16;
+
+/// The share of the cache's bound that read-ahead may fill with pages no
+/// client has asked for yet.
+pub const AHEAD_SHARE: u64 = 4;
+
+/// Why a page is read into the cache.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Purpose {
+    /// A client asked for it.
+    Wanted,
+    /// Read-ahead guesses a client will.
+    Ahead,
+}
 
 /// A byte-bounded LRU of page frames.
 #[derive(Debug)]
@@ -70,8 +93,87 @@ impl Flight {
 
 #[derive(Debug)]
 struct Inner {
-    lru: LruCache<PageKey, Bytes>,
+    /// Pages clients asked for, by recency.
+    served: LruCache<PageKey, Entry>,
+    /// Pages read ahead that no client has asked for yet, by recency.
+    ahead: LruCache<PageKey, Entry>,
+    /// Bytes of both, and of `ahead` alone.
     bytes: u64,
+    ahead_bytes: u64,
+    /// A clock of uses, so the least recent of the two parts is known.
+    clock: u64,
+}
+
+#[derive(Debug)]
+struct Entry {
+    frame: Bytes,
+    /// `Inner::clock` when last used or inserted.
+    used: u64,
+}
+
+impl Inner {
+    fn tick(&mut self) -> u64 {
+        self.clock += 1;
+        self.clock
+    }
+
+    /// Drops the least recent guess; whether there was one.
+    fn drop_oldest_guess(&mut self, metrics: &Metrics) -> bool {
+        match self.ahead.pop_lru() {
+            Some((_, old)) => {
+                let len = old.frame.len() as u64;
+                self.bytes -= len;
+                self.ahead_bytes -= len;
+                Metrics::add(&metrics.prefetch_unused, 1);
+                true
+            }
+            None => false,
+        }
+    }
+
+    /// Drops the least recent page of either part; whether there was one.
+    fn drop_least_recent(&mut self, metrics: &Metrics) -> bool {
+        let served = self.served.peek_lru().map(|(_, e)| e.used);
+        let ahead = self.ahead.peek_lru().map(|(_, e)| e.used);
+        match (served, ahead) {
+            (Some(s), Some(a)) if a < s => self.drop_oldest_guess(metrics),
+            (Some(_), _) => {
+                if let Some((_, old)) = self.served.pop_lru() {
+                    self.bytes -= old.frame.len() as u64;
+                }
+                true
+            }
+            (None, Some(_)) => self.drop_oldest_guess(metrics),
+            (None, None) => false,
+        }
+    }
+
+    /// Moves a guess a client now asks for to the served part.
+    fn promote(&mut self, key: PageKey) -> Option<Bytes> {
+        let entry = self.ahead.pop(&key)?;
+        self.ahead_bytes -= entry.frame.len() as u64;
+        let used = self.tick();
+        let frame = entry.frame.clone();
+        self.served.put(
+            key,
+            Entry {
+                frame: frame.clone(),
+                used,
+            },
+        );
+        Some(frame)
+    }
+
+    fn show(&self, metrics: &Metrics) {
+        metrics.cache_bytes.store(self.bytes, Ordering::Relaxed);
+        metrics.cache_pages.store(
+            (self.served.len() + self.ahead.len()) as u64,
+            Ordering::Relaxed,
+        );
+        metrics
+            .cache_ahead_bytes
+            .store(self.ahead_bytes, Ordering::Relaxed);
+    }
 }
 
 impl PageCache {
@@ -81,8 +183,11 @@ impl PageCache {
             .store(capacity, Ordering::Relaxed);
         Self {
             inner: Mutex::new(Inner {
-                lru: LruCache::unbounded(),
+                served: LruCache::unbounded(),
+                ahead: LruCache::unbounded(),
                 bytes: 0,
+                ahead_bytes: 0,
+                clock: 0,
             }),
             capacity,
             verdicts: Mutex::new(HashMap::new()),
@@ -96,38 +201,85 @@ impl PageCache {
         self.inner.lock().unwrap_or_else(|e| e.into_inner())
     }
 
-    /// The cached frame, made most recently used.
+    /// The cached frame for a client, made most recently used (a guess of
+    /// read-ahead's becomes a served page).
     pub fn get(&self, key: PageKey) -> Option<Bytes> {
-        self.lock().lru.get(&key).cloned()
+        let mut inner = self.lock();
+        let used = inner.tick();
+        if let Some(entry) = inner.served.get_mut(&key) {
+            entry.used = used;
+            return Some(entry.frame.clone());
+        }
+        inner.promote(key)
+    }
+
+    /// The cached frame for read-ahead: neither its recency nor its part
+    /// changes (a guess is not a use).
+    pub fn peek(&self, key: PageKey) -> Option<Bytes> {
+        let inner = self.lock();
+        inner
+            .served
+            .peek(&key)
+            .or_else(|| inner.ahead.peek(&key))
+            .map(|e| e.frame.clone())
+    }
+
+    /// Bytes held by pages read ahead that no client has asked for yet
+    /// (shown in `/metrics` as of the last insert).
+    pub fn ahead_bytes(&self) -> u64 {
+        self.lock().ahead_bytes
     }
 
     /// Whether `key` is cached, without touching its recency.
     pub fn contains(&self, key: PageKey) -> bool {
-        self.lock().lru.contains(&key)
+        let inner = self.lock();
+        inner.served.contains(&key) || inner.ahead.contains(&key)
     }
 
-    /// Adds a frame, evicting least recently used frames past the bound. A
-    /// frame larger than the whole cache is not kept.
-    pub fn insert(&self, key: PageKey, frame: Bytes, metrics: &Metrics) {
+    /// Adds a frame for `purpose`. A client's page makes room by dropping
+    /// the least recent pages of either part; read-ahead's only by
+    /// dropping its own older guesses, within its share, and is not kept
+    /// when that is not enough. A frame larger than the whole cache is not
+    /// kept.
+    pub fn insert(&self, key: PageKey, frame: Bytes, purpose: Purpose, metrics: &Metrics) {
         let len = frame.len() as u64;
         if len > self.capacity {
             return;
         }
         let mut inner = self.lock();
-        if let Some(old) = inner.lru.put(key, frame) {
-            inner.bytes -= old.len() as u64;
-        }
-        inner.bytes += len;
-        while inner.bytes > self.capacity {
-            match inner.lru.pop_lru() {
-                Some((_, old)) => inner.bytes -= old.len() as u64,
-                None => break,
+        let used = inner.tick();
+        match purpose {
+            Purpose::Wanted => {
+                if let Some(old) = inner.ahead.pop(&key) {
+                    inner.bytes -= old.frame.len() as u64;
+                    inner.ahead_bytes -= old.frame.len() as u64;
+                }
+                if let Some(old) = inner.served.put(key, Entry { frame, used }) {
+                    inner.bytes -= old.frame.len() as u64;
+                }
+                inner.bytes += len;
+                while inner.bytes > self.capacity && inner.drop_least_recent(metrics) {}
+            }
+            Purpose::Ahead => {
+                if inner.served.contains(&key) || inner.ahead.contains(&key) {
+                    return;
+                }
+                let share = self.capacity / AHEAD_SHARE;
+                let served_bytes = inner.bytes - inner.ahead_bytes;
+                if len > share || served_bytes + len > self.capacity {
+                    // No guess dropped could make room: none is.
+                    Metrics::add(&metrics.prefetch_skipped, 1);
+                    return;
+                }
+                while inner.ahead_bytes + len > share || inner.bytes + len > self.capacity {
+                    inner.drop_oldest_guess(metrics);
+                }
+                inner.ahead.put(key, Entry { frame, used });
+                inner.bytes += len;
+                inner.ahead_bytes += len;
             }
         }
-        metrics.cache_bytes.store(inner.bytes, Ordering::Relaxed);
-        metrics
-            .cache_pages
-            .store(inner.lru.len() as u64, Ordering::Relaxed);
+        inner.show(metrics);
     }
 
     /// Reads, verifies and caches a page that was not found in the cache.
@@ -137,6 +289,7 @@ impl PageCache {
         &self,
         scene: &ServedScene,
         page: u32,
+        purpose: Purpose,
         metrics: &Metrics,
     ) -> Result<Bytes, PageError> {
         let key = (scene.id, page);
@@ -164,16 +317,25 @@ impl PageCache {
             }
         };
         if !first {
-            return flight.wait();
+            let result = flight.wait();
+            if purpose == Purpose::Wanted && result.is_ok() {
+                // Read ahead by the flight this joined: now a client's.
+                let _ = self.get(key);
+            }
+            return result;
         }
         // Read by a flight that just ended, between the miss and here.
-        let result = match self.get(key) {
+        let cached = match purpose {
+            Purpose::Wanted => self.get(key),
+            Purpose::Ahead => self.peek(key),
+        };
+        let result = match cached {
             Some(frame) => Ok(frame),
             None => read_verified(scene, page, metrics)
                 .inspect_err(|e| self.failed(scene, page, e, metrics)),
         };
         if let Ok(frame) = &result {
-            self.insert(key, frame.clone(), metrics);
+            self.insert(key, frame.clone(), purpose, metrics);
         }
         self.flights
             .lock()
@@ -202,7 +364,12 @@ impl PageCache {
                     let mut frame = Vec::with_capacity(bytes.len() + 1);
                     frame.push(FrameKind::Page as u8);
                     frame.extend_from_slice(&bytes);
-                    self.insert((scene.id, page), Bytes::from(frame), metrics);
+                    self.insert(
+                        (scene.id, page),
+                        Bytes::from(frame),
+                        Purpose::Ahead,
+                        metrics,
+                    );
                     loaded += 1;
                 }
                 Err(e) => self.failed(scene, page, &e, metrics),
@@ -251,8 +418,10 @@ impl PageCache {
     ) -> Result<Bytes, PageError> {
         Metrics::add(&metrics.cache_misses, 1);
         let (cache, scene2, metrics2) = (self.clone(), scene.clone(), metrics.clone());
-        match tokio::task::spawn_blocking(move || cache.read_through(&scene2, page, &metrics2))
-            .await
+        match tokio::task::spawn_blocking(move || {
+            cache.read_through(&scene2, page, Purpose::Wanted, &metrics2)
+        })
+        .await
         {
             Ok(result) => result,
             // The blocking pool is gone: the runtime is shutting down, and
@@ -278,21 +447,74 @@ fn read_verified(scene: &ServedScene, page: u32, metrics: &Metrics) -> Result<By
 mod tests {
     use super::*;
 
+    fn frame(len: usize) -> Bytes {
+        Bytes::from(vec![0u8; len])
+    }
+
     #[test]
     fn evicts_least_recently_used_past_the_byte_bound() {
         let m = Metrics::default();
         let cache = PageCache::new(100, &m);
-        cache.insert((0, 1), Bytes::from(vec![0u8; 40]), &m);
-        cache.insert((0, 2), Bytes::from(vec![0u8; 40]), &m);
+        cache.insert((0, 1), frame(40), Purpose::Wanted, &m);
+        cache.insert((0, 2), frame(40), Purpose::Wanted, &m);
         assert!(cache.get((0, 1)).is_some(), "touch page 1");
-        cache.insert((1, 1), Bytes::from(vec![0u8; 40]), &m);
+        cache.insert((1, 1), frame(40), Purpose::Wanted, &m);
         assert!(cache.contains((0, 1)));
         assert!(!cache.contains((0, 2)), "page 2 was least recently used");
         assert!(cache.contains((1, 1)));
         assert_eq!(m.snapshot().cache_bytes, 80);
-        cache.insert((2, 0), Bytes::from(vec![0u8; 101]), &m);
+        cache.insert((2, 0), frame(101), Purpose::Wanted, &m);
         assert!(!cache.contains((2, 0)), "larger than the cache");
         assert_eq!(m.snapshot().cache_pages, 2);
+    }
+
+    /// Read-ahead fills at most its share, by dropping its own older
+    /// guesses, and never a page a client asked for; a guess a client asks
+    /// for becomes a served page; a client's page may drop a stale guess.
+    #[test]
+    fn read_ahead_never_pushes_out_a_page_a_client_asked_for() {
+        let m = Metrics::default();
+        let cache = PageCache::new(400, &m);
+        for p in 0..9 {
+            cache.insert((0, p), frame(40), Purpose::Wanted, &m);
+        }
+        // 360 of 400 bytes served: one guess fits, the next drops it.
+        cache.insert((1, 0), frame(40), Purpose::Ahead, &m);
+        assert!(cache.contains((1, 0)));
+        cache.insert((1, 1), frame(40), Purpose::Ahead, &m);
+        assert!(!cache.contains((1, 0)) && cache.contains((1, 1)));
+        assert!(
+            (0..9).all(|p| cache.contains((0, p))),
+            "no served page dropped"
+        );
+        assert_eq!(m.snapshot().prefetch_unused, 1);
+        // A guess larger than the room left beside served pages is not kept.
+        cache.insert((1, 2), frame(80), Purpose::Ahead, &m);
+        assert!(!cache.contains((1, 2)));
+        assert!((0..9).all(|p| cache.contains((0, p))));
+        assert_eq!(m.snapshot().prefetch_skipped, 1);
+        // Asked for, a guess is served, and read-ahead's room is free again.
+        assert!(cache.get((1, 1)).is_some());
+        assert_eq!(cache.ahead_bytes(), 0);
+        // A client's page drops the least recent page, which is a served
+        // one here (0, 0), not the newer guess.
+        let fresh = PageCache::new(160, &m);
+        fresh.insert((0, 0), frame(40), Purpose::Wanted, &m);
+        fresh.insert((0, 1), frame(40), Purpose::Ahead, &m);
+        for p in 2..5 {
+            fresh.insert((0, p), frame(40), Purpose::Wanted, &m);
+        }
+        assert!(!fresh.contains((0, 0)) && fresh.contains((0, 1)));
+        // And next the guess, now the least recent.
+        fresh.insert((0, 5), frame(40), Purpose::Wanted, &m);
+        assert!(!fresh.contains((0, 1)) && fresh.contains((0, 2)));
+        // Read-ahead's share is a quarter of the bound.
+        let shared = PageCache::new(400, &m);
+        for p in 0..5 {
+            shared.insert((2, p), frame(40), Purpose::Ahead, &m);
+        }
+        let kept = (0..5).filter(|&p| shared.contains((2, p))).count();
+        assert_eq!(kept, 2, "100 bytes of guesses at most");
     }
 
     /// A source whose every read takes a while, counted.
@@ -347,7 +569,7 @@ mod tests {
         let cache = PageCache::new(1 << 30, &m);
         let frames: Vec<Bytes> = std::thread::scope(|s| {
             let readers: Vec<_> = (0..8)
-                .map(|_| s.spawn(|| cache.read_through(&scene, 0, &m).unwrap()))
+                .map(|_| s.spawn(|| cache.read_through(&scene, 0, Purpose::Wanted, &m).unwrap()))
                 .collect();
             readers.into_iter().map(|r| r.join().unwrap()).collect()
         });

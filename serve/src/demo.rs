@@ -386,8 +386,12 @@ impl DemoSessions {
     }
 
     /// The sessions' figures in the Prometheus text format.
-    pub fn render_metrics(&self, out: &mut String) {
-        let list = self.list();
+    pub fn render_metrics(&self, out: &mut String, shown: impl Fn(&str) -> bool) {
+        let list: Vec<SessionSummary> = self
+            .list()
+            .into_iter()
+            .filter(|s| shown(&s.scene))
+            .collect();
         let _ = writeln!(
             out,
             "# HELP farfield_sessions Demo sessions open.\n# TYPE farfield_sessions gauge\nfarfield_sessions {}",

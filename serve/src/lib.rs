@@ -28,13 +28,17 @@ mod admission;
 pub mod cache;
 pub mod catalog;
 pub mod demo;
+pub mod hosts;
+pub mod lag;
 pub mod limits;
 mod listen;
+pub mod logs;
 pub mod lookahead;
 pub mod metrics;
 pub mod origin;
 mod pages;
 pub mod prefetch;
+pub mod quote;
 pub mod rescan;
 pub mod rlimit;
 mod routes;
@@ -161,6 +165,12 @@ pub(crate) struct AppState {
     pub lookahead: Lookahead,
     pub limits: Limits,
     pub access: Access,
+    /// How far behind the runtime is (the message-rate limit allows for it).
+    pub lag: Arc<lag::Lag>,
+    /// The names requests may be for (DNS rebinding is refused).
+    pub hosts: hosts::Hosts,
+    /// `https` with TLS, else `http`: the scheme of the server's own origin.
+    pub scheme: &'static str,
     /// Becomes `true` when the server is shutting down.
     pub shutdown: watch::Receiver<bool>,
     /// Signalled whenever a session ends.
@@ -211,6 +221,15 @@ pub async fn start(config: ServerConfig) -> Result<RunningServer, ServeError> {
         Some(dir) => tracing::info!("browser viewer from {}", dir.display()),
         None => tracing::info!("no browser viewer found (build it with web/build)"),
     }
+    let cert_names = match &tls {
+        Some(files) => tls::read_certs(&files.cert)
+            .map_err(ServeError::Tls)?
+            .first()
+            .map(hosts::certificate_names)
+            .unwrap_or_default(),
+        None => Vec::new(),
+    };
+    let scheme = if tls.is_some() { "https" } else { "http" };
     let tls = tls
         .as_ref()
         .map(tls::acceptor)
@@ -254,20 +273,6 @@ pub async fn start(config: ServerConfig) -> Result<RunningServer, ServeError> {
         Prefetcher::start(cache.clone(), metrics.clone()).map_err(ServeError::Threads)?;
     let lookahead =
         Lookahead::start(cache.clone(), metrics.clone()).map_err(ServeError::Threads)?;
-    let (shutdown_tx, shutdown_rx) = watch::channel(false);
-    let state = Arc::new(AppState {
-        catalog,
-        cache,
-        metrics,
-        prefetch,
-        lookahead,
-        limits: limits.clone(),
-        access,
-        shutdown: shutdown_rx.clone(),
-        session_ended: Notify::new(),
-        web_dir,
-        demo: Arc::new(demo::DemoSessions::new(&limits)),
-    });
     let listener = tokio::net::TcpListener::bind(listen)
         .await
         .map_err(|error| ServeError::Bind {
@@ -278,11 +283,30 @@ pub async fn start(config: ServerConfig) -> Result<RunningServer, ServeError> {
         addr: listen,
         error,
     })?;
+    let hosts = hosts::Hosts::new(local_addr, &cert_names, &access.allowed_hosts);
+    let (shutdown_tx, shutdown_rx) = watch::channel(false);
+    let state = Arc::new(AppState {
+        catalog,
+        cache,
+        metrics,
+        prefetch,
+        lookahead,
+        limits: limits.clone(),
+        access,
+        hosts,
+        scheme,
+        lag: lag::Lag::new(),
+        shutdown: shutdown_rx.clone(),
+        session_ended: Notify::new(),
+        web_dir,
+        demo: Arc::new(demo::DemoSessions::new(&limits)),
+    });
     let admission = Admission::new(
         limits.max_connections,
         limits.max_connections_per_address,
         state.metrics.clone(),
     );
+    tokio::spawn(state.lag.clone().run(shutdown_rx.clone()));
     let task = tokio::spawn(listen::accept_loop(
         listener,
         routes::router(state.clone()),
@@ -308,21 +332,25 @@ pub async fn start(config: ServerConfig) -> Result<RunningServer, ServeError> {
     })
 }
 
-/// Raises the open-files limit to what `limits.max_connections` needs, or
-/// lowers the connection limit to what the open-files limit allows (with a
-/// warning): a server that runs out of descriptors refuses everyone.
+/// Raises the open-files limit to what `limits` needs (connections,
+/// refusals being answered, and the server's own files), or lowers the
+/// connection and refusal limits to what the open-files limit allows (with
+/// a warning): a server that runs out of descriptors refuses everyone, and
+/// cannot open its scenes.
 fn fit_open_files(limits: &mut Limits) {
-    let wanted = limits.max_connections as u64 + rlimit::RESERVED_FILES;
+    let wanted = (limits.max_connections + limits.max_refusing) as u64 + rlimit::RESERVED_FILES;
     if let Some(files) = rlimit::raise_open_files(wanted) {
-        let fits = files.saturating_sub(rlimit::RESERVED_FILES).max(1) as usize;
-        if fits < limits.max_connections {
+        let (connections, refusing) = rlimit::share_open_files(files, limits);
+        if connections < limits.max_connections || refusing < limits.max_refusing {
             tracing::warn!(
                 open_files = files,
-                "the open-files limit allows {fits} connections, not {}; serving at most {fits}",
+                "the open-files limit allows {connections} connections (and {refusing} refusals \
+                 answered at once), not {}; serving at most {connections}",
                 limits.max_connections
             );
-            limits.max_connections = fits;
         }
+        limits.max_connections = connections;
+        limits.max_refusing = refusing;
     }
 }
 
@@ -366,8 +394,27 @@ impl RunningServer {
     /// The counters now, as `GET /metrics` renders them.
     pub fn metrics_text(&self) -> String {
         let mut text = self.state.metrics.render();
-        self.state.demo.render_metrics(&mut text);
+        self.state.demo.render_metrics(&mut text, |_| true);
         text
+    }
+
+    /// Serves one connection over `io` as if it had been accepted from
+    /// `peer`, through everything an accepted connection goes through
+    /// after admission (HTTP/1.1, the access checks, the routes, a
+    /// websocket session), and returns when it ends: how the fuzz target
+    /// puts arbitrary bytes into the server without a socket.
+    pub async fn serve_stream<S>(&self, io: S, peer: SocketAddr)
+    where
+        S: tokio::io::AsyncRead + tokio::io::AsyncWrite + Unpin + Send + 'static,
+    {
+        listen::serve_connection(
+            io,
+            peer,
+            routes::router(self.state.clone()),
+            self.state.clone(),
+            self.state.shutdown.clone(),
+        )
+        .await;
     }
 
     /// The demo sessions now, as `GET /sessions` lists them.

@@ -55,6 +55,11 @@ pub struct Limits {
     pub session_grace: Duration,
     /// Demo sessions open at once; past it a new one is refused.
     pub max_sessions: usize,
+    /// Refused connections being answered at once (each holds its socket
+    /// while its answer goes out); past it a refused connection is closed
+    /// without one. Lowered with `max_connections` to fit the open-files
+    /// limit, so refusals never take the descriptors the server needs.
+    pub max_refusing: usize,
 }
 
 impl Default for Limits {
@@ -68,6 +73,7 @@ impl Default for Limits {
             max_messages_per_second: 1000,
             session_grace: Duration::from_secs(30),
             max_sessions: 256,
+            max_refusing: 256,
         }
     }
 }
@@ -80,6 +86,7 @@ impl Limits {
         self.max_connections_per_address = self.max_connections_per_address.max(1);
         self.max_messages_per_second = self.max_messages_per_second.max(1);
         self.max_sessions = self.max_sessions.max(1);
+        self.max_refusing = self.max_refusing.max(1);
         for t in [
             &mut self.header_timeout,
             &mut self.hello_timeout,
@@ -136,7 +143,10 @@ impl Limit {
     }
 }
 
-/// A token bucket: `rate` a second, holding at most a second's worth.
+/// A token bucket: `rate` a second, holding at most a second's worth, and
+/// more when the server fell behind: what the client may have sent while
+/// the server was not reading ([`crate::lag`]), so a backlog read at once
+/// after a stall is not taken for a burst.
 #[derive(Debug)]
 pub struct RateLimiter {
     rate: f64,
@@ -154,11 +164,14 @@ impl RateLimiter {
         }
     }
 
-    /// Takes one token; `false` when none is left.
-    pub fn take(&mut self, now: std::time::Instant) -> bool {
+    /// Takes one token; `false` when none is left. `behind` is how long
+    /// the server recently went without reading (its runtime's lag): the
+    /// bucket holds up to `rate` times one second plus that.
+    pub fn take(&mut self, now: std::time::Instant, behind: Duration) -> bool {
         let elapsed = now.saturating_duration_since(self.last).as_secs_f64();
         self.last = now;
-        self.tokens = (self.tokens + elapsed * self.rate).min(self.rate);
+        let room = self.rate * (1.0 + behind.as_secs_f64());
+        self.tokens = (self.tokens + elapsed * self.rate).min(room);
         if self.tokens >= 1.0 {
             self.tokens -= 1.0;
             true
@@ -177,14 +190,33 @@ mod tests {
     fn the_bucket_allows_a_seconds_burst_then_the_rate() {
         let t0 = Instant::now();
         let mut bucket = RateLimiter::new(100, t0);
-        assert_eq!((0..150).filter(|_| bucket.take(t0)).count(), 100);
+        let on_time = Duration::ZERO;
+        assert_eq!((0..150).filter(|_| bucket.take(t0, on_time)).count(), 100);
         let t1 = t0 + Duration::from_millis(500);
-        assert_eq!((0..150).filter(|_| bucket.take(t1)).count(), 50);
+        assert_eq!((0..150).filter(|_| bucket.take(t1, on_time)).count(), 50);
         let t2 = t1 + Duration::from_secs(60);
         assert_eq!(
-            (0..150).filter(|_| bucket.take(t2)).count(),
+            (0..150).filter(|_| bucket.take(t2, on_time)).count(),
             100,
             "never more than a second's worth"
+        );
+    }
+
+    /// A server that did not read for 3 s reads a client's 3 s of steady
+    /// sending at once: the bucket holds it, as it would have had the
+    /// server read on time; and only while the lag lasts.
+    #[test]
+    fn a_backlog_from_a_stalled_server_is_not_a_burst() {
+        let t0 = Instant::now();
+        let mut bucket = RateLimiter::new(100, t0);
+        let t1 = t0 + Duration::from_secs(3);
+        let stalled = Duration::from_secs(3);
+        assert_eq!((0..300).filter(|_| bucket.take(t1, stalled)).count(), 300);
+        let t2 = t1 + Duration::from_secs(60);
+        assert_eq!(
+            (0..400).filter(|_| bucket.take(t2, Duration::ZERO)).count(),
+            100,
+            "a server on time again allows a second's worth"
         );
     }
 }

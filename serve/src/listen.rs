@@ -5,9 +5,10 @@
 //!
 //! A refused connection gets a short JSON answer (503 when the server is
 //! full, 429 when its address has too many connections open) and is
-//! closed; at most [`MAX_REFUSING`] such answers are under way at once, and
-//! past that a refused connection is closed without one, so a flood cannot
-//! grow the server's work.
+//! closed; at most `Limits::max_refusing` such answers are under way at
+//! once (fitted to the open-files limit with the connections), and past
+//! that a refused connection is closed without one, so a flood can grow
+//! neither the server's work nor its descriptors.
 
 use std::net::SocketAddr;
 use std::sync::Arc;
@@ -28,9 +29,8 @@ use tower::ServiceExt;
 use super::AppState;
 use super::admission::{Admission, Admitted};
 use super::limits::Limit;
+use super::metrics::Metrics;
 
-/// Refusals being answered at once, at most.
-pub const MAX_REFUSING: usize = 256;
 /// How long a refusal may take to write its answer and see the client go.
 const REFUSAL_GRACE: Duration = Duration::from_secs(2);
 /// Bytes of request head hyper buffers per connection, at most.
@@ -57,6 +57,7 @@ pub(crate) async fn accept_loop(
             Err(e) => {
                 // Out of descriptors, most likely: wait for some to close
                 // rather than spin, and say so once in a while.
+                Metrics::add(&state.metrics.accept_errors, 1);
                 if last_accept_warning.is_none_or(|t| t.elapsed() > Duration::from_secs(10)) {
                     tracing::warn!("cannot accept connections: {e}");
                     last_accept_warning = Some(Instant::now());
@@ -103,7 +104,7 @@ pub(crate) async fn accept_loop(
             Err(limit) => {
                 state.metrics.hit(limit);
                 tracing::debug!(%peer, "connection refused: {}", limit.name());
-                if refusing.fetch_add(1, Ordering::Relaxed) < MAX_REFUSING {
+                if refusing.fetch_add(1, Ordering::Relaxed) < state.limits.max_refusing {
                     let refusing = refusing.clone();
                     let answer = refusal(limit, &admission);
                     tokio::spawn(async move {
@@ -158,6 +159,39 @@ async fn refuse(mut tcp: TcpStream, answer: String) {
     .await;
 }
 
+/// The bytes of a request's head as sent: its request line and its header
+/// lines.
+fn head_bytes<B>(request: &hyper::Request<B>) -> usize {
+    let line = request.method().as_str().len()
+        + request
+            .uri()
+            .path_and_query()
+            .map_or(1, |p| p.as_str().len())
+        + " HTTP/1.1\r\n".len()
+        + 1;
+    let headers: usize = request
+        .headers()
+        .iter()
+        .map(|(name, value)| name.as_str().len() + value.len() + ": \r\n".len())
+        .sum();
+    line + headers + "\r\n".len()
+}
+
+/// The answer to a request whose head is past [`MAX_HEAD_BYTES`].
+fn head_too_large() -> axum::response::Response {
+    use axum::response::IntoResponse;
+    let message = format!(
+        "the request's headers are larger than {} KiB",
+        MAX_HEAD_BYTES >> 10
+    );
+    (
+        axum::http::StatusCode::REQUEST_HEADER_FIELDS_TOO_LARGE,
+        [(axum::http::header::CONNECTION, "close")],
+        axum::Json(serde_json::json!({ "error": message })),
+    )
+        .into_response()
+}
+
 /// Serves one admitted connection as HTTP/1.1 (with upgrades) until it
 /// closes, or until the server shuts down and its current request ends.
 pub(crate) async fn serve_connection<S>(
@@ -171,7 +205,15 @@ pub(crate) async fn serve_connection<S>(
 {
     let service = hyper::service::service_fn(move |mut request: hyper::Request<Incoming>| {
         request.extensions_mut().insert(ConnectInfo(peer));
-        router.clone().oneshot(request)
+        let router = router.clone();
+        async move {
+            // hyper's buffer bound is soft (a head sent in one write can pass
+            // it); the head's own size is not.
+            if head_bytes(&request) > MAX_HEAD_BYTES {
+                return Ok::<_, std::convert::Infallible>(head_too_large());
+            }
+            router.oneshot(request).await
+        }
     });
     let mut builder = http1::Builder::new();
     builder

@@ -25,7 +25,7 @@ use farfield_protocol::messages::SharedView;
 use farfield_traverse::{Traversal, TraversalOptions, for_hierarchy};
 use glam::DVec3;
 
-use super::cache::PageCache;
+use super::cache::{PageCache, Purpose};
 use super::catalog::ServedScene;
 use super::metrics::Metrics;
 
@@ -253,9 +253,9 @@ fn walk(walker: &mut Walker, pass: &Pass, cache: &PageCache, metrics: &Metrics) 
                 break;
             }
             pages += 1;
-            let frame = match cache.get((pass.scene.id, page)) {
+            let frame = match cache.peek((pass.scene.id, page)) {
                 Some(frame) => frame,
-                None => match cache.read_through(&pass.scene, page, metrics) {
+                None => match cache.read_through(&pass.scene, page, Purpose::Ahead, metrics) {
                     Ok(frame) => {
                         loads += 1;
                         frame

@@ -31,6 +31,14 @@ pub struct Metrics {
     pub cache_capacity_bytes: AtomicU64,
     pub prefetch_loads: AtomicU64,
     pub prefetch_dropped: AtomicU64,
+    /// Pages read ahead and dropped before any client asked for them (the
+    /// reads read-ahead wasted), and pages read ahead but not kept (no
+    /// room without dropping a page a client asked for).
+    pub prefetch_unused: AtomicU64,
+    pub prefetch_skipped: AtomicU64,
+    /// Bytes of the cache holding pages read ahead that no client has
+    /// asked for yet.
+    pub cache_ahead_bytes: AtomicU64,
     /// Look-ahead along presenters' motion: passes walked, pages it read
     /// into the cache, and passes dropped because the queue was full.
     pub lookahead_passes: AtomicU64,
@@ -38,6 +46,11 @@ pub struct Metrics {
     pub lookahead_dropped: AtomicU64,
     pub corrupt_pages: AtomicU64,
     pub malformed_frames: AtomicU64,
+    /// Sessions whose client went without a closing handshake (closed
+    /// TCP, or reset): ordinary disconnects, apart from violations.
+    pub dropped_connections: AtomicU64,
+    /// Failed accepts (out of descriptors, most likely).
+    pub accept_errors: AtomicU64,
     pub connections_total: AtomicU64,
     /// Signed so a decrement racing an increment can never wrap.
     pub connected_clients: AtomicI64,
@@ -71,11 +84,16 @@ pub struct MetricsSnapshot {
     pub cache_capacity_bytes: u64,
     pub prefetch_loads: u64,
     pub prefetch_dropped: u64,
+    pub prefetch_unused: u64,
+    pub prefetch_skipped: u64,
+    pub cache_ahead_bytes: u64,
     pub lookahead_passes: u64,
     pub lookahead_loads: u64,
     pub lookahead_dropped: u64,
     pub corrupt_pages: u64,
     pub malformed_frames: u64,
+    pub dropped_connections: u64,
+    pub accept_errors: u64,
     pub connections_total: u64,
     pub connected_clients: u64,
     pub open_connections: u64,
@@ -151,11 +169,16 @@ impl Metrics {
             cache_capacity_bytes: get(&self.cache_capacity_bytes),
             prefetch_loads: get(&self.prefetch_loads),
             prefetch_dropped: get(&self.prefetch_dropped),
+            prefetch_unused: get(&self.prefetch_unused),
+            prefetch_skipped: get(&self.prefetch_skipped),
+            cache_ahead_bytes: get(&self.cache_ahead_bytes),
             lookahead_passes: get(&self.lookahead_passes),
             lookahead_loads: get(&self.lookahead_loads),
             lookahead_dropped: get(&self.lookahead_dropped),
             corrupt_pages: get(&self.corrupt_pages),
             malformed_frames: get(&self.malformed_frames),
+            dropped_connections: get(&self.dropped_connections),
+            accept_errors: get(&self.accept_errors),
             connections_total: get(&self.connections_total),
             connected_clients: gauge(&self.connected_clients),
             open_connections: gauge(&self.open_connections),
@@ -263,6 +286,24 @@ impl Metrics {
             s.prefetch_dropped,
         );
         metric(
+            "farfield_prefetch_unused_total",
+            "counter",
+            "Pages read ahead and dropped from the cache before any client asked for them.",
+            s.prefetch_unused,
+        );
+        metric(
+            "farfield_prefetch_skipped_total",
+            "counter",
+            "Pages read ahead but not kept: no room without dropping a page a client asked for.",
+            s.prefetch_skipped,
+        );
+        metric(
+            "farfield_page_cache_ahead_bytes",
+            "gauge",
+            "Bytes of the page cache holding pages read ahead that no client has asked for yet.",
+            s.cache_ahead_bytes,
+        );
+        metric(
             "farfield_lookahead_passes_total",
             "counter",
             "Walks of a presenter's extrapolated view, ahead of its motion.",
@@ -291,6 +332,18 @@ impl Metrics {
             "counter",
             "Client frames that broke the protocol and closed their connection.",
             s.malformed_frames,
+        );
+        metric(
+            "farfield_connections_dropped_total",
+            "counter",
+            "Websocket sessions whose client left without a closing handshake (an ordinary disconnect).",
+            s.dropped_connections,
+        );
+        metric(
+            "farfield_accept_errors_total",
+            "counter",
+            "Connections the server could not accept (out of descriptors, most likely).",
+            s.accept_errors,
         );
         metric(
             "farfield_connections_total",

@@ -15,7 +15,7 @@ use std::ops::Range;
 use std::sync::mpsc::{Receiver, SyncSender, TrySendError, sync_channel};
 use std::sync::{Arc, Mutex};
 
-use super::cache::{PageCache, PageKey};
+use super::cache::{PageCache, PageKey, Purpose};
 use super::catalog::ServedScene;
 use super::metrics::Metrics;
 
@@ -125,7 +125,11 @@ fn worker(rx: &Mutex<Receiver<Job>>, cache: &PageCache, metrics: &Metrics, pendi
             // Failures are told to the session that asks for the page, if
             // one does (and corrupt pages are remembered by the cache).
             loaded += match page - start {
-                1 => u64::from(cache.read_through(&scene, start, metrics).is_ok()),
+                1 => u64::from(
+                    cache
+                        .read_through(&scene, start, Purpose::Ahead, metrics)
+                        .is_ok(),
+                ),
                 _ => cache.read_run_through(&scene, start..page, metrics),
             };
         }

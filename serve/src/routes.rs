@@ -93,16 +93,20 @@ fn not_found(message: String) -> Response {
 }
 
 fn unknown_scene(name: &str) -> Response {
-    not_found(format!("no scene named {name:?}"))
+    not_found(format!("no scene named {:?}", super::quote::prefix(name)))
 }
 
 async fn healthz() -> &'static str {
     "ok"
 }
 
-async fn metrics(State(app): State<Arc<AppState>>) -> Response {
+/// The server's counters, and the demo sessions' series of the scenes the
+/// request's token covers (a session's name may say more than its scene's:
+/// "secret-board-meeting").
+async fn metrics(State(app): State<Arc<AppState>>, Extension(grant): Extension<Grant>) -> Response {
     let mut text = app.metrics.render();
-    app.demo.render_metrics(&mut text);
+    app.demo
+        .render_metrics(&mut text, |scene| grant.allows(scene));
     ([(header::CONTENT_TYPE, "text/plain; version=0.0.4")], text).into_response()
 }
 
@@ -170,7 +174,10 @@ async fn stream(
     // never reads costs this much, not more (tungstenite's default is
     // unbounded). Its memory stays at the most it ever held.
     let largest_frame = scene.largest_header_frame().max(scene.largest_page()) + 16;
-    ws.max_message_size(MAX_CLIENT_MESSAGE)
+    // A browser that offers the token's subprotocol must be answered with
+    // one it offered, or it drops the connection.
+    ws.protocols([farfield_protocol::auth::SUBPROTOCOL])
+        .max_message_size(MAX_CLIENT_MESSAGE)
         .max_frame_size(MAX_CLIENT_MESSAGE)
         .write_buffer_size(WRITE_BUFFER_BYTES)
         .max_write_buffer_size(WRITE_BUFFER_BYTES + largest_frame + WRITE_BUFFER_SLACK_BYTES)

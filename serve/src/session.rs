@@ -207,6 +207,10 @@ enum Frame {
     Bad(u16, String),
     TooBig(String),
     Gone,
+    /// The connection ended without a closing handshake (the client closed
+    /// TCP, or its machine reset it): an ordinary disconnect, counted as
+    /// one, not as a protocol violation.
+    Dropped,
 }
 
 async fn next_frame(stream: &mut Stream) -> Frame {
@@ -233,8 +237,12 @@ fn read_error(error: axum::Error) -> Frame {
             Frame::TooBig(format!("a {size}-byte message; the limit is {max_size}"))
         }
         Some(WsError::Capacity(e)) => Frame::TooBig(e.to_string()),
+        Some(WsError::Protocol(
+            tungstenite::error::ProtocolError::ResetWithoutClosingHandshake,
+        )) => Frame::Dropped,
         Some(WsError::Protocol(e)) => Frame::Bad(CLOSE_PROTOCOL, format!("websocket: {e}")),
         Some(WsError::Utf8(e)) => Frame::Bad(1007, format!("websocket: {e}")),
+        Some(WsError::Io(_) | WsError::ConnectionClosed | WsError::AlreadyClosed) => Frame::Dropped,
         _ => {
             tracing::debug!("websocket read failed: {inner}");
             Frame::Gone
@@ -379,6 +387,10 @@ fn hello(
         Ok(Frame::Binary(b)) => b,
         Ok(Frame::Alive) => unreachable!("first_message skips pings"),
         Ok(Frame::Gone) => return Err(End::ClientGone),
+        Ok(Frame::Dropped) => {
+            Metrics::add(&app.metrics.dropped_connections, 1);
+            return Err(End::ClientGone);
+        }
         Ok(other) => return Err(misbehaved(other, app)),
         Err(_) => {
             app.metrics.hit(Limit::HelloTimeout);
@@ -479,6 +491,10 @@ fn misbehaved(frame: Frame, app: &AppState) -> End {
         }
         Frame::Binary(_) | Frame::Alive => End::Malformed(CLOSE_PROTOCOL, "unexpected".into()),
         Frame::Gone => End::ClientGone,
+        Frame::Dropped => {
+            Metrics::add(&app.metrics.dropped_connections, 1);
+            End::ClientGone
+        }
     }
 }
 
@@ -505,7 +521,8 @@ async fn read_loop(
             );
         };
         let over_rate = |rate: &mut RateLimiter| {
-            (!rate.take(Instant::now())).then(|| {
+            let now = Instant::now();
+            (!rate.take(now, app.lag.recent(now))).then(|| {
                 app.metrics.hit(Limit::MessageRate);
                 End::Limited(
                     Limit::MessageRate,
@@ -655,9 +672,12 @@ fn apply(
                     tracing::info!(scene = %scene.name, session = %seat.name, present, member = shared.member, "joined a demo session");
                     st.seat = Some(seat);
                 }
-                Err(reason) => {
-                    st.queue_control(&ServerMessage::SessionClosed { session, reason })?
-                }
+                // The name is quoted back cut short: it is the client's
+                // own, of any length up to a control message's.
+                Err(reason) => st.queue_control(&ServerMessage::SessionClosed {
+                    session: super::quote::prefix(&session),
+                    reason,
+                })?,
             }
         }
         ClientMessage::View { view } => with_seat(&mut shared.lock(), |seat| {

@@ -36,14 +36,16 @@ pub fn find_dir() -> Option<PathBuf> {
     candidates.into_iter().find(|d| d.join(FILES[0]).is_file())
 }
 
-/// Whether `dir` holds a built viewer; why not, if it does not.
+/// Whether `dir` holds a built viewer; why not, if it does not. The reason
+/// names the missing file, never the folder: it is shown to clients.
 pub fn ready(dir: Option<&Path>) -> Result<(), String> {
     let Some(dir) = dir else {
         return Err("no folder with the viewer's files was found".into());
     };
     for file in FILES {
         if !dir.join(file).is_file() {
-            return Err(format!("{} has no {file}", dir.display()));
+            tracing::warn!(folder = %dir.display(), "the viewer's folder has no {file}");
+            return Err(format!("the viewer's folder has no {file}"));
         }
     }
     Ok(())
@@ -78,18 +80,23 @@ pub(crate) async fn serve(
             )
                 .into_response()
         }
-        Err(e) => (
-            StatusCode::NOT_FOUND,
-            Json(json!({ "error": format!("{}: {e}", path.display()) })),
-        )
-            .into_response(),
+        Err(e) => {
+            // The operator reads where it looked; a client learns nothing
+            // of the server's file system.
+            tracing::warn!(path = %path.display(), "cannot serve the viewer's {name}: {e}");
+            (
+                StatusCode::NOT_FOUND,
+                Json(json!({ "error": format!("this server has no {name} (its viewer is not built)") })),
+            )
+                .into_response()
+        }
     }
 }
 
 fn not_found(file: &str) -> Response {
     (
         StatusCode::NOT_FOUND,
-        Json(json!({ "error": format!("no viewer file named {file:?}") })),
+        Json(json!({ "error": format!("no viewer file named {:?}", crate::quote::prefix(file)) })),
     )
         .into_response()
 }

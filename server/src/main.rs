@@ -11,14 +11,8 @@ use farfield_server::cli::{Cli, run};
 static ALLOCATOR: HugePageAlloc = HugePageAlloc;
 
 fn main() -> ExitCode {
-    tracing_subscriber::fmt()
-        // Info by default so `serve` logs connections; RUST_LOG overrides.
-        .with_env_filter(
-            tracing_subscriber::EnvFilter::try_from_default_env()
-                .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("info")),
-        )
-        .with_writer(std::io::stderr)
-        .init();
+    // Info by default so `serve` logs connections; RUST_LOG overrides.
+    farfield_serve::logs::init(Some("info"));
     let cli = Cli::parse();
     match run(cli) {
         Ok(report) => {

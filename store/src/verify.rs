@@ -64,8 +64,8 @@ pub fn page_entry(header: &FileHeader, index: usize) -> Result<PageEntry, Format
 }
 
 /// Checks `bytes`, read for page `index` of the scene `header` describes:
-/// its length, its checksum, its page header, and its agreement with the
-/// directory.
+/// its length, its checksum (its own, and the directory's copy of it), its
+/// page header, and its agreement with the directory.
 pub fn verify_page(header: &FileHeader, index: usize, bytes: &[u8]) -> Result<(), FormatError> {
     let entry = page_entry(header, index)?;
     if bytes.len() != entry.length as usize {
@@ -75,6 +75,7 @@ pub fn verify_page(header: &FileHeader, index: usize, bytes: &[u8]) -> Result<()
             have: bytes.len() as u64,
         });
     }
+    farfield_protocol::page::check_against_entry(&entry, index as u32, bytes)?;
     let page = match header.kind {
         HierarchyKind::Spheres => Page::parse(bytes, index as u32, header.node_bytes)?,
         HierarchyKind::Cubes | HierarchyKind::Plp | HierarchyKind::Bsp => {

@@ -45,7 +45,7 @@ impl Crowd {
         let slowloris = tokio::spawn({
             let stop = stop.clone();
             async move {
-                let head = b"GET /scenes HTTP/1.1\r\nHost: x\r\nX-Slow: ";
+                let head = b"GET /scenes HTTP/1.1\r\nHost: localhost\r\nX-Slow: ";
                 let mut written = 0usize;
                 while !stop.load(std::sync::atomic::Ordering::Relaxed) {
                     let byte = head.get(written).copied().unwrap_or(b'a');

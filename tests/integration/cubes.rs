@@ -542,7 +542,6 @@ fn corrupt_cube_pages_are_refused() {
     // Re-encode page 0 with one triangle index out of range and a fresh CRC.
     let page = &file.pages[0];
     let parsed = farfield_protocol::page::Page::parse_with_payload(page, 0, 32).unwrap();
-    let mut h = Hierarchy::new(file.header.clone()).unwrap();
     let (records, mut payload) = (parsed.records.to_vec(), parsed.payload.to_vec());
     // The first leaf with geometry: its payload starts after the sub-cubes
     // and payloads of the cells before it.
@@ -555,11 +554,16 @@ fn corrupt_cube_pages_are_refused() {
             let end = at + r.payload_bytes as usize;
             // The last index of the leaf (16-bit indices in small leaves).
             payload[end - 2..end].copy_from_slice(&(vertices as u16).to_le_bytes());
-            let (bad, _) = farfield_protocol::page::encode_page_with_payload(
+            let (bad, crc) = farfield_protocol::page::encode_page_with_payload(
                 &parsed.header,
                 &records,
                 &payload,
             );
+            // A directory that agrees (a forged file), so the page reaches
+            // the checks behind the checksums.
+            let mut header = file.header.clone();
+            header.pages[0].checksum = crc;
+            let mut h = Hierarchy::new(header).unwrap();
             let e = h.insert_page(0, &bad).unwrap_err();
             assert!(e.to_string().contains("past"), "{e}");
             assert!(!h.is_resident(0));

@@ -23,6 +23,7 @@ mod out_of_core;
 mod plp;
 mod progress;
 mod real_data;
+mod repeats;
 mod replicas;
 mod s3;
 pub(crate) mod serve;

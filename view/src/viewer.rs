@@ -11,14 +11,13 @@
 //! pages, with why ([`Viewer::failed_pages`]), are no longer asked for:
 //! their parts of the tree are drawn from coarser pages.
 
-use std::collections::VecDeque;
+use std::collections::{HashSet, VecDeque};
 use std::path::Path;
 use std::time::Duration;
 
 use anyhow::Context;
 use farfield_net::{
     DemoEvent, FailedPage, NetStats, Session, SessionEvent, SessionOptions, Transport, stream_url,
-    with_token,
 };
 use farfield_protocol::file::FileHeader;
 use farfield_protocol::hierarchy::Hierarchy;
@@ -45,6 +44,11 @@ pub struct Viewer {
     frame_bytes: u64,
     /// Events taken from the session and not yet applied (see [`Viewer::pump_for`]).
     pending: VecDeque<SessionEvent>,
+    /// The pages among `pending`: arrived (and acknowledged), not yet
+    /// resident. Never asked for again: the server would send each again
+    /// (it was once 2.6 pages sent for each kept, on a scene whose pages
+    /// take long to insert).
+    arrived: HashSet<u32>,
     /// Demo-session news not yet taken ([`Viewer::take_demo_events`]).
     demo_events: VecDeque<DemoEvent>,
     /// A file's viewer has no session; its counters stay zero.
@@ -98,8 +102,7 @@ impl Viewer {
         options: SessionOptions,
         cache_bytes: usize,
     ) -> Self {
-        let url = with_token(&stream_url(server, scene), options.token.as_deref());
-        let session = Session::open(transport, url, options);
+        let session = Session::open(transport, stream_url(server, scene), options);
         Self::with_session(Some(session), cache_bytes)
     }
 
@@ -111,6 +114,7 @@ impl Viewer {
             cache_bytes,
             frame_bytes: 0,
             pending: VecDeque::new(),
+            arrived: HashSet::new(),
             demo_events: VecDeque::new(),
             no_stats: NetStats::default(),
         }
@@ -195,7 +199,12 @@ impl Viewer {
             } else {
                 Duration::ZERO
             };
-            self.pending.extend(session.pump(wait)?);
+            for event in session.pump(wait)? {
+                if let SessionEvent::Page { index, .. } = &event {
+                    self.arrived.insert(*index);
+                }
+                self.pending.push_back(event);
+            }
         }
         Ok(())
     }
@@ -208,6 +217,7 @@ impl Viewer {
             recency,
             cache_bytes,
             pending,
+            arrived,
             demo_events,
             ..
         } = self
@@ -222,6 +232,7 @@ impl Viewer {
                         Some(Hierarchy::new(header).context("scene header from the server")?);
                 }
                 SessionEvent::Page { index, bytes } => {
+                    arrived.remove(&index);
                     let Some(h) = hierarchy.as_mut() else {
                         continue;
                     };
@@ -272,10 +283,23 @@ impl Viewer {
     /// (measured: a 200 KB page and 136 KB of leaves traded places every
     /// frame, 40 MB in 8 s). A view whose pages outgrow the cache stays
     /// as it is and does not refine, as Potree's memory limit does.
+    ///
+    /// Pages that arrived and wait to be inserted are not asked for: they
+    /// are here already.
     pub fn request(&mut self, wanted: &[WantedPage]) {
         let kept = self.affordable(wanted);
-        if let Some(s) = self.session.as_mut() {
+        let Some(s) = self.session.as_mut() else {
+            return;
+        };
+        if self.arrived.is_empty() {
             s.request(&wanted[..kept]);
+        } else {
+            let missing: Vec<WantedPage> = wanted[..kept]
+                .iter()
+                .filter(|w| !self.arrived.contains(&w.page))
+                .copied()
+                .collect();
+            s.request(&missing);
         }
     }
 

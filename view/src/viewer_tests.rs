@@ -152,3 +152,29 @@ fn requests_stop_where_the_cache_could_not_keep_them_beside_the_frames_pages() {
     full.request(&wanted);
     assert_eq!(full.outstanding(), 0);
 }
+
+/// Pages that arrived and wait for their turn to be inserted (a frame
+/// inserts for a few milliseconds only) are not asked for again: the
+/// session acknowledged them, so the server would send each once more.
+#[test]
+fn pages_waiting_to_be_inserted_are_not_asked_for_again() {
+    let file = scene();
+    assert!(file.pages.len() >= 5, "{} pages", file.pages.len());
+    let (mut v, wire) = viewer(&file, usize::MAX);
+    for p in 1..4 {
+        wire.push(frame(encode_page_frame(&file.pages[p])));
+    }
+    assert_eq!(v.pump_for(Duration::ZERO).expect("pump"), 1);
+    assert_eq!(v.pending_pages(), 2, "pages 2 and 3 wait");
+    let wanted: Vec<WantedPage> = (2..5)
+        .map(|p| WantedPage {
+            page: p,
+            priority: 10.0 - f64::from(p),
+        })
+        .collect();
+    v.request(&wanted);
+    assert_eq!(v.outstanding(), 1, "only page 4 is asked for");
+    v.pump(Duration::ZERO).expect("pump");
+    let h = v.hierarchy().unwrap();
+    assert!(h.is_resident(2) && h.is_resident(3), "and they were kept");
+}

@@ -4,6 +4,7 @@
 //! an exit code. `main.rs` only parses, prints and exits.
 
 mod build;
+mod cert;
 mod export;
 mod health;
 mod inspect;
@@ -48,6 +49,25 @@ pub enum Command {
     /// Exit 0 when the server at URL (`http://host:port`) answers /healthz
     /// (the container images' healthcheck).
     Health(HealthArgs),
+    /// Write a private key and a self-signed certificate for `serve
+    /// --tls-cert/--tls-key` (`DIR/key.pem`, `DIR/cert.pem`): a server
+    /// certificate (not an authority), for the names given, that the
+    /// client takes with `--ca-cert DIR/cert.pem` and a browser after an
+    /// exception.
+    Cert(CertArgs),
+}
+
+#[derive(Debug, clap::Args)]
+pub struct CertArgs {
+    /// A host name or address the certificate is for; repeatable
+    /// (`localhost` and `127.0.0.1` when none is given).
+    #[arg(long = "name", value_name = "HOST")]
+    pub names: Vec<String>,
+    /// The folder to write `key.pem` and `cert.pem` into.
+    #[arg(long, value_name = "DIR")]
+    pub out: PathBuf,
+    #[arg(long)]
+    pub json: bool,
 }
 
 #[derive(Debug, clap::Args)]
@@ -251,6 +271,14 @@ pub struct ServeArgs {
     /// besides its own pages; `*` allows any. Repeatable.
     #[arg(long = "allow-origin", value_name = "ORIGIN")]
     pub allowed_origins: Vec<String>,
+    /// A host name requests may be for besides the server's own addresses,
+    /// `localhost` (on loopback or every interface) and its certificate's
+    /// names: a reverse proxy's public name, or this machine's name on a
+    /// network. Requests for other names are refused (421), so a page on a
+    /// domain rebound to this address reads nothing. `*` answers any.
+    /// Repeatable.
+    #[arg(long = "allowed-host", value_name = "NAME")]
+    pub allowed_hosts: Vec<String>,
     /// Serve HTTPS and wss:// with this certificate chain (PEM).
     #[arg(long, value_name = "PEM", requires = "tls_key")]
     pub tls_cert: Option<PathBuf>,
@@ -310,6 +338,7 @@ impl LimitArgs {
             max_messages_per_second: self.max_messages_per_second,
             session_grace: Duration::from_secs_f64(self.session_grace),
             max_sessions: self.max_sessions,
+            ..Limits::default()
         }
         .sane()
     }
@@ -384,6 +413,7 @@ pub fn run(cli: Cli) -> anyhow::Result<Report> {
         Command::Export(args) => export::run(&args),
         Command::Publish(args) => publish::run(&args),
         Command::Health(args) => health::run(&args),
+        Command::Cert(args) => cert::run(&args),
     }
 }
 

@@ -98,6 +98,7 @@ fn access(args: &ServeArgs) -> anyhow::Result<Access> {
     Ok(Access {
         tokens,
         allowed_origins: args.allowed_origins.clone(),
+        allowed_hosts: args.allowed_hosts.clone(),
     })
 }
 

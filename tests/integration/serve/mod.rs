@@ -6,9 +6,11 @@
 //! of hanging it.
 
 mod access;
+mod accounting;
 mod hostile;
 pub(crate) mod limits;
 mod live;
+mod refusals;
 pub(crate) mod support;
 
 use std::collections::HashSet;
@@ -504,6 +506,61 @@ async fn a_corrupt_page_is_reported_and_never_sent() {
     server.shutdown().await.expect("shutdown");
 }
 
+/// A page edited in place with its own checksum recomputed (and the file's
+/// modification time put back, so nothing but the bytes says it changed)
+/// passes its own check; the server compares it with the directory's copy
+/// of its checksum and refuses it.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_page_edited_with_its_checksum_recomputed_is_refused() {
+    let dir = scratch("serve-forged");
+    let path = dir.join("island.ff");
+    write_atomic(&path, island()).expect("write");
+    let modified = std::fs::metadata(&path)
+        .and_then(|m| m.modified())
+        .expect("mtime");
+    let entry = island().header.pages[2];
+    let (start, end) = (
+        entry.offset as usize,
+        (entry.offset + u64::from(entry.length)) as usize,
+    );
+    let mut bytes = std::fs::read(&path).expect("read");
+    bytes[start + 40] ^= 0x10;
+    let crc = crc32fast::hash(&bytes[start..end - 4]);
+    bytes[end - 4..end].copy_from_slice(&crc.to_le_bytes());
+    assert!(
+        farfield_protocol::page::Page::parse_with_payload(
+            &bytes[start..end],
+            2,
+            island().header.node_bytes
+        )
+        .is_ok(),
+        "the edited page is consistent in itself"
+    );
+    {
+        use std::io::{Seek, SeekFrom, Write};
+        let mut file = std::fs::OpenOptions::new()
+            .write(true)
+            .open(&path)
+            .expect("open");
+        file.seek(SeekFrom::Start(start as u64)).expect("seek");
+        file.write_all(&bytes[start..end]).expect("edit in place");
+        file.set_modified(modified).expect("restore the mtime");
+    }
+    let server = serve(&dir).await;
+    let (mut c, _, _) = Client::open(server.local_addr(), "island", 16 << 20, false).await;
+    c.request(&[(2, 5.0)]).await;
+    match c.recv().await {
+        In::Control(ServerMessage::PageUnavailable { page, reason }) => {
+            assert_eq!(page, 2);
+            assert!(reason.contains("directory"), "{reason}");
+        }
+        other => panic!("unexpected {other:?}"),
+    }
+    assert!(c.recv_within(QUIET).await.is_none(), "page 2 never sent");
+    assert!(server.metrics().corrupt_pages >= 1);
+    server.shutdown().await.expect("shutdown");
+}
+
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn every_error_status_has_a_json_body() {
     let dir = scenes_dir("serve-json-errors");
@@ -511,15 +568,15 @@ async fn every_error_status_has_a_json_body() {
     let addr = server.local_addr();
     let cases = [
         (
-            "POST /scenes HTTP/1.1\r\nHost: x\r\nContent-Length: 0\r\nConnection: close\r\n\r\n",
+            "POST /scenes HTTP/1.1\r\nHost: localhost\r\nContent-Length: 0\r\nConnection: close\r\n\r\n",
             "405",
         ),
         (
-            "GET /scenes/island/stream HTTP/1.1\r\nHost: x\r\nConnection: close\r\n\r\n",
+            "GET /scenes/island/stream HTTP/1.1\r\nHost: localhost\r\nConnection: close\r\n\r\n",
             "4",
         ),
         (
-            "GET /nowhere HTTP/1.1\r\nHost: x\r\nConnection: close\r\n\r\n",
+            "GET /nowhere HTTP/1.1\r\nHost: localhost\r\nConnection: close\r\n\r\n",
             "404",
         ),
     ];
@@ -701,7 +758,7 @@ async fn a_websocket_protocol_violation_is_closed_with_1002() {
     let addr = server.local_addr();
     let mut tcp = TcpStream::connect(addr).await.expect("connect");
     tcp.write_all(
-        b"GET /scenes/island/stream HTTP/1.1\r\nHost: x\r\nUpgrade: websocket\r\n\
+        b"GET /scenes/island/stream HTTP/1.1\r\nHost: localhost\r\nUpgrade: websocket\r\n\
           Connection: Upgrade\r\nSec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\n\
           Sec-WebSocket-Version: 13\r\n\r\n",
     )

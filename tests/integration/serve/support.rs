@@ -332,7 +332,20 @@ impl ChildServer {
         extra_args: &str,
         envs: &[(&'static str, String)],
     ) -> Self {
+        Self::start_limited(netns, scenes, extra_args, envs, None)
+    }
+
+    /// As [`ChildServer::start_with`], with its open-files limit (soft and
+    /// hard, as `ulimit -n` sets them) at `open_files` when given.
+    pub(crate) fn start_limited(
+        netns: Option<&str>,
+        scenes: &std::ffi::OsStr,
+        extra_args: &str,
+        envs: &[(&'static str, String)],
+        open_files: Option<u64>,
+    ) -> Self {
         use std::io::{BufRead, BufReader};
+        use std::os::unix::process::CommandExt;
         use std::process::{Command, Stdio};
         let exe = std::env::current_exe().expect("test binary");
         let mut command = match netns {
@@ -343,6 +356,23 @@ impl ChildServer {
             }
             None => Command::new(exe),
         };
+        if let Some(limit) = open_files {
+            let limit = libc::rlimit {
+                rlim_cur: limit as libc::rlim_t,
+                rlim_max: limit as libc::rlim_t,
+            };
+            // SAFETY: between fork and exec only setrlimit runs, which is
+            // async-signal-safe, on a value copied into the closure.
+            unsafe {
+                command.pre_exec(move || {
+                    if libc::setrlimit(libc::RLIMIT_NOFILE, &limit) == 0 {
+                        Ok(())
+                    } else {
+                        Err(std::io::Error::last_os_error())
+                    }
+                });
+            }
+        }
         let mut child = command
             .args(["serve::serve_cli_child", "--exact", "--nocapture"])
             .env("FARFIELD_SERVE_CHILD_DIR", scenes)
