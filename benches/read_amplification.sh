@@ -49,18 +49,18 @@ run() { # name bin cache clients
   "$bin/farfield" loadtest --server "http://$addr" --scene island --clients "$clients" \
     --duration "$seconds" --out "$dir/load" > "$dir/loadtest.log" 2>&1 || true
   kill $server; wait $server 2>/dev/null || true
-  python3 - "$dir/load/summary.json" "$name" "$cache" "$clients" <<'PY'
+  python3 - "$dir/load/loadtest.json" "$name" "$cache" "$clients" <<'PY'
 import json, sys
 s = json.load(open(sys.argv[1]))
 f = lambda k, d=2: "-" if s.get(k) is None else f"{s[k]:.{d}f}"
 print(f"| {sys.argv[2]} | {sys.argv[3]} | {sys.argv[4]} | {f('server_disk_reads_per_page_served')} | "
       f"{f('latency_p50_ms', 1)} / {f('latency_p95_ms', 1)} / {f('latency_p99_ms', 1)} | "
-      f"{f('pages_per_s', 0)} | {s.get('errors', '-')} |")
+      f"{f('pages_per_s', 0)} | {f('server_cache_hit_rate', 3)} | {s.get('errors', '-')} |")
 PY
 }
 
-echo "| build | cache MiB | clients | disk reads a page served | latency p50 / p95 / p99 (ms) | pages/s | errors |"
-echo "|---|---|---|---|---|---|---|"
+echo "| build | cache MiB | clients | disk reads a page served | latency p50 / p95 / p99 (ms) | pages/s | cache hit rate | errors |"
+echo "|---|---|---|---|---|---|---|---|"
 for cache in $caches; do
   for clients in $client_counts; do
     for b in "${builds[@]}"; do
