@@ -3,13 +3,20 @@
 //!
 //! Two parts share the bound. Pages a client asked for are kept by
 //! recency (`served`). Pages read ahead of any request (a page's
-//! children, a presenter's extrapolated view) wait apart (`ahead`), in at
-//! most [`AHEAD_SHARE`] of the bound, until a client asks for one, which
-//! moves it to `served`. Read-ahead makes room only by dropping its own
-//! older guesses, never a page a client asked for: under a small cache it
-//! once did, and the disk read 3.2 pages for every page sent. A client's
-//! page makes room by dropping whichever is least recent, a served page
-//! or a guess.
+//! children, a presenter's extrapolated view) wait apart (`ahead`) until a
+//! client asks for one, which moves it to `served`. Read-ahead fills free
+//! room, and makes room only by dropping its own older guesses, never a
+//! page a client asked for: under a small cache it once did, and the disk
+//! read 3.2 pages for every page sent. A client's page makes room by
+//! dropping whichever is least recent, a served page or a guess.
+//!
+//! Read-ahead is also held to what its guesses are worth: every guess
+//! dropped unused (or read and not kept) spends a credit, every page
+//! served earns [`GUESS_SLACK`] of one, up to [`GUESS_CREDIT`]; without
+//! credit, read-ahead waits ([`PageCache::may_guess`]). Guesses that
+//! clients go on to ask for cost nothing, so a cache that holds the scene
+//! reads ahead freely, while one too small for the guesses to live until
+//! used reads at most about `1 + GUESS_SLACK` pages per page served.
 //!
 //! Values are ready-to-send page frames (the kind byte, then the page's
 //! stored bytes) read straight into the frame, so sending a cached page to
@@ -41,9 +48,14 @@ pub type PageKey = (u32, u32);
 /// folder of broken files can cost.
 pub const MAX_VERDICTS: usize = 1 << 16;
 
-/// The share of the cache's bound that read-ahead may fill with pages no
-/// client has asked for yet.
-pub const AHEAD_SHARE: u64 = 4;
+/// The credit, in pages, that read-ahead may waste on guesses no client
+/// asks for before it must wait for pages served to earn more; also what
+/// it starts with.
+pub const GUESS_CREDIT: f64 = 256.0;
+
+/// The credit each page served earns read-ahead: the wasted reads it is
+/// allowed per page served.
+pub const GUESS_SLACK: f64 = 0.1;
 
 /// Why a page is read into the cache.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -102,6 +114,8 @@ struct Inner {
     ahead_bytes: u64,
     /// A clock of uses, so the least recent of the two parts is known.
     clock: u64,
+    /// Read-ahead's credit, in pages (see the module's overview).
+    credit: f64,
 }
 
 #[derive(Debug)]
@@ -117,6 +131,11 @@ impl Inner {
         self.clock
     }
 
+    /// A guess was read for nothing.
+    fn wasted(&mut self) {
+        self.credit -= 1.0;
+    }
+
     /// Drops the least recent guess; whether there was one.
     fn drop_oldest_guess(&mut self, metrics: &Metrics) -> bool {
         match self.ahead.pop_lru() {
@@ -124,6 +143,7 @@ impl Inner {
                 let len = old.frame.len() as u64;
                 self.bytes -= len;
                 self.ahead_bytes -= len;
+                self.wasted();
                 Metrics::add(&metrics.prefetch_unused, 1);
                 true
             }
@@ -188,6 +208,7 @@ impl PageCache {
                 bytes: 0,
                 ahead_bytes: 0,
                 clock: 0,
+                credit: GUESS_CREDIT,
             }),
             capacity,
             verdicts: Mutex::new(HashMap::new()),
@@ -230,6 +251,20 @@ impl PageCache {
         self.lock().ahead_bytes
     }
 
+    /// Whether read-ahead may read a guess now: it has credit left, and
+    /// there is room beside the pages clients asked for (a guess read
+    /// without room would not be kept).
+    pub fn may_guess(&self) -> bool {
+        let inner = self.lock();
+        inner.credit >= 1.0 && inner.bytes - inner.ahead_bytes < self.capacity
+    }
+
+    /// A page was served to a client: read-ahead earns its slack.
+    fn served(&self) {
+        let mut inner = self.lock();
+        inner.credit = (inner.credit + GUESS_SLACK).min(GUESS_CREDIT);
+    }
+
     /// Whether `key` is cached, without touching its recency.
     pub fn contains(&self, key: PageKey) -> bool {
         let inner = self.lock();
@@ -237,10 +272,9 @@ impl PageCache {
     }
 
     /// Adds a frame for `purpose`. A client's page makes room by dropping
-    /// the least recent pages of either part; read-ahead's only by
-    /// dropping its own older guesses, within its share, and is not kept
-    /// when that is not enough. A frame larger than the whole cache is not
-    /// kept.
+    /// the least recent pages of either part; read-ahead's fills free
+    /// room, or drops its own older guesses, and is not kept when that is
+    /// not enough. A frame larger than the whole cache is not kept.
     pub fn insert(&self, key: PageKey, frame: Bytes, purpose: Purpose, metrics: &Metrics) {
         let len = frame.len() as u64;
         if len > self.capacity {
@@ -264,14 +298,14 @@ impl PageCache {
                 if inner.served.contains(&key) || inner.ahead.contains(&key) {
                     return;
                 }
-                let share = self.capacity / AHEAD_SHARE;
                 let served_bytes = inner.bytes - inner.ahead_bytes;
-                if len > share || served_bytes + len > self.capacity {
+                if served_bytes + len > self.capacity {
                     // No guess dropped could make room: none is.
+                    inner.wasted();
                     Metrics::add(&metrics.prefetch_skipped, 1);
                     return;
                 }
-                while inner.ahead_bytes + len > share || inner.bytes + len > self.capacity {
+                while inner.bytes + len > self.capacity {
                     inner.drop_oldest_guess(metrics);
                 }
                 inner.ahead.put(key, Entry { frame, used });
@@ -405,6 +439,7 @@ impl PageCache {
     pub fn hit(&self, scene: &ServedScene, page: u32, metrics: &Metrics) -> Option<Bytes> {
         let frame = self.get((scene.id, page))?;
         Metrics::add(&metrics.cache_hits, 1);
+        self.served();
         Some(frame)
     }
 
@@ -417,6 +452,7 @@ impl PageCache {
         metrics: &Arc<Metrics>,
     ) -> Result<Bytes, PageError> {
         Metrics::add(&metrics.cache_misses, 1);
+        self.served();
         let (cache, scene2, metrics2) = (self.clone(), scene.clone(), metrics.clone());
         match tokio::task::spawn_blocking(move || {
             cache.read_through(&scene2, page, Purpose::Wanted, &metrics2)
@@ -468,8 +504,8 @@ mod tests {
         assert_eq!(m.snapshot().cache_pages, 2);
     }
 
-    /// Read-ahead fills at most its share, by dropping its own older
-    /// guesses, and never a page a client asked for; a guess a client asks
+    /// Read-ahead fills free room, then only by dropping its own older
+    /// guesses, never a page a client asked for; a guess a client asks
     /// for becomes a served page; a client's page may drop a stale guess.
     #[test]
     fn read_ahead_never_pushes_out_a_page_a_client_asked_for() {
@@ -508,13 +544,52 @@ mod tests {
         // And next the guess, now the least recent.
         fresh.insert((0, 5), frame(40), Purpose::Wanted, &m);
         assert!(!fresh.contains((0, 1)) && fresh.contains((0, 2)));
-        // Read-ahead's share is a quarter of the bound.
-        let shared = PageCache::new(400, &m);
-        for p in 0..5 {
-            shared.insert((2, p), frame(40), Purpose::Ahead, &m);
+        // Into an empty cache, guesses fill all of it: one that holds the
+        // scene reads each page once.
+        let roomy = PageCache::new(400, &m);
+        for p in 0..10 {
+            roomy.insert((2, p), frame(40), Purpose::Ahead, &m);
         }
-        let kept = (0..5).filter(|&p| shared.contains((2, p))).count();
-        assert_eq!(kept, 2, "100 bytes of guesses at most");
+        assert!((0..10).all(|p| roomy.contains((2, p))));
+        assert_eq!(roomy.ahead_bytes(), 400);
+    }
+
+    /// Guesses dropped unused spend read-ahead's credit until it stops;
+    /// pages served earn it back, and guesses clients use cost nothing.
+    #[test]
+    fn read_ahead_stops_when_its_guesses_go_unused() {
+        let m = Metrics::default();
+        let cache = PageCache::new(400, &m);
+        let wasted = GUESS_CREDIT as u32;
+        // Ten guesses fill the cache; each one more drops one unused.
+        for p in 0..10 + wasted {
+            assert!(cache.may_guess(), "credit left at guess {p}");
+            cache.insert((0, p), frame(40), Purpose::Ahead, &m);
+        }
+        assert_eq!(m.snapshot().prefetch_unused, u64::from(wasted));
+        assert!(!cache.may_guess(), "every guess so far went unused");
+        // Twenty pages served (five of the guesses, four times each) earn
+        // two guesses back.
+        let scene_page = |p| (0, 10 + wasted - 1 - p);
+        for p in 0..20 {
+            assert!(cache.get(scene_page(p % 5)).is_some(), "a guess used");
+            cache.served();
+        }
+        assert!(cache.may_guess());
+        for p in 0..3 {
+            cache.insert((1, p), frame(40), Purpose::Ahead, &m);
+        }
+        assert!(!cache.may_guess(), "three more wasted, credit spent again");
+        // Used guesses, now served pages, are never dropped for a guess.
+        assert!(
+            (0..5).all(|p| cache.contains(scene_page(p))),
+            "all five still cached"
+        );
+        // With the cache all served, there is no room to guess into.
+        let full = PageCache::new(80, &m);
+        full.insert((1, 0), frame(40), Purpose::Wanted, &m);
+        full.insert((1, 1), frame(40), Purpose::Wanted, &m);
+        assert!(!full.may_guess(), "no room beside served pages");
     }
 
     /// A source whose every read takes a while, counted.

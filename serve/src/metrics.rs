@@ -36,6 +36,7 @@ pub struct Metrics {
     /// room without dropping a page a client asked for).
     pub prefetch_unused: AtomicU64,
     pub prefetch_skipped: AtomicU64,
+    pub prefetch_throttled: AtomicU64,
     /// Bytes of the cache holding pages read ahead that no client has
     /// asked for yet.
     pub cache_ahead_bytes: AtomicU64,
@@ -86,6 +87,7 @@ pub struct MetricsSnapshot {
     pub prefetch_dropped: u64,
     pub prefetch_unused: u64,
     pub prefetch_skipped: u64,
+    pub prefetch_throttled: u64,
     pub cache_ahead_bytes: u64,
     pub lookahead_passes: u64,
     pub lookahead_loads: u64,
@@ -171,6 +173,7 @@ impl Metrics {
             prefetch_dropped: get(&self.prefetch_dropped),
             prefetch_unused: get(&self.prefetch_unused),
             prefetch_skipped: get(&self.prefetch_skipped),
+            prefetch_throttled: get(&self.prefetch_throttled),
             cache_ahead_bytes: get(&self.cache_ahead_bytes),
             lookahead_passes: get(&self.lookahead_passes),
             lookahead_loads: get(&self.lookahead_loads),
@@ -296,6 +299,12 @@ impl Metrics {
             "counter",
             "Pages read ahead but not kept: no room without dropping a page a client asked for.",
             s.prefetch_skipped,
+        );
+        metric(
+            "farfield_prefetch_throttled_total",
+            "counter",
+            "Pages not read ahead because recent guesses went unused too often, or no room was left for guesses.",
+            s.prefetch_throttled,
         );
         metric(
             "farfield_page_cache_ahead_bytes",

@@ -8,7 +8,10 @@
 //! as runs of neighbours, each read at once where the source can (one
 //! range request to an object store). The queue in front of the threads is
 //! bounded: a hint that does not fit is dropped (and counted), since
-//! read-ahead is only ever an optimisation.
+//! read-ahead is only ever an optimisation. So is a hint while the cache
+//! says guessing does not pay ([`PageCache::may_guess`]: too many recent
+//! guesses went unused, or no room is left for them), asked when the hint
+//! is given and again before each read.
 
 use std::collections::HashSet;
 use std::ops::Range;
@@ -69,6 +72,10 @@ impl Prefetcher {
     /// there or on their way are skipped, and the rest queued as runs of
     /// neighbours. Never blocks.
     pub fn hint(&self, scene: &Arc<ServedScene>, pages: Range<u32>) {
+        if !self.cache.may_guess() {
+            Metrics::add(&self.metrics.prefetch_throttled, pages.len() as u64);
+            return;
+        }
         let mut run: Option<Range<u32>> = None;
         for page in pages {
             let key = (scene.id, page);
@@ -121,6 +128,10 @@ fn worker(rx: &Mutex<Receiver<Job>>, cache: &PageCache, metrics: &Metrics, pendi
             let start = page;
             while page < run.end && !cache.contains((scene.id, page)) {
                 page += 1;
+            }
+            if !cache.may_guess() {
+                Metrics::add(&metrics.prefetch_throttled, u64::from(page - start));
+                continue;
             }
             // Failures are told to the session that asks for the page, if
             // one does (and corrupt pages are remembered by the cache).
