@@ -1,6 +1,8 @@
 //! Opening the GPU adapter on a headless machine: no spurious errors.
 
-use std::process::{Command, Output};
+use std::process::Output;
+
+use farfield_tests::{child_ran, child_test};
 
 use farfield_render::{DEVICE_SELECT_OFF, headless_or_skip};
 
@@ -10,9 +12,8 @@ const CHILD_ENV: &str = "FARFIELD_ADAPTER_CHILD";
 /// Re-runs this test binary on [`open_adapter_child`] with no desktop
 /// session in the environment, with or without the device-select switch.
 fn open_adapter_in_child(switch_off_device_select: bool) -> Output {
-    let mut command = Command::new(std::env::current_exe().expect("test binary"));
+    let mut command = child_test("adapter::open_adapter_child");
     command
-        .args(["adapter::open_adapter_child", "--exact", "--nocapture"])
         .env(CHILD_ENV, "1")
         .env_remove("XDG_RUNTIME_DIR")
         .env_remove("WAYLAND_DISPLAY")
@@ -26,6 +27,11 @@ fn open_adapter_in_child(switch_off_device_select: bool) -> Output {
         output.status.success(),
         "child failed: {}",
         String::from_utf8_lossy(&output.stderr)
+    );
+    assert!(
+        child_ran(&output.stdout),
+        "the child test did not run: {}",
+        String::from_utf8_lossy(&output.stdout)
     );
     output
 }
@@ -54,8 +60,10 @@ fn a_headless_machine_opens_the_adapter_without_a_wayland_error() {
     );
 }
 
-/// The child's work: open a headless adapter. Does nothing in a normal run.
+/// The child's work: open a headless adapter. Does nothing unless started
+/// by the test above.
 #[test]
+#[ignore = "subprocess entry point: run by its parent test"]
 fn open_adapter_child() {
     if std::env::var_os(CHILD_ENV).is_none() {
         return;

@@ -33,8 +33,7 @@ fn any_port() -> SocketAddr {
 /// running [`server_cli_child`]) whose environment names the store, as a
 /// user's shell would; fails the test if it fails.
 fn cli_in_child(store: &S3Store, args: &[&str]) -> String {
-    let out = std::process::Command::new(std::env::current_exe().expect("test binary"))
-        .args(["objects::server_cli_child", "--exact", "--nocapture"])
+    let out = farfield_tests::child_test("objects::server_cli_child")
         .env("FARFIELD_CLI_CHILD_ARGS", args.join("\n"))
         .envs(store.env())
         .output()
@@ -45,11 +44,16 @@ fn cli_in_child(store: &S3Store, args: &[&str]) -> String {
         "farfield-server {args:?} failed:\n{stdout}\n{}",
         String::from_utf8_lossy(&out.stderr)
     );
+    assert!(
+        farfield_tests::child_ran(&out.stdout),
+        "the child test did not run: {stdout}"
+    );
     stdout
 }
 
 /// The child half of [`cli_in_child`]: does nothing unless started by it.
 #[test]
+#[ignore = "subprocess entry point: run by its parent test"]
 fn server_cli_child() {
     let Ok(args) = std::env::var("FARFIELD_CLI_CHILD_ARGS") else {
         return;

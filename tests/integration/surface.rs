@@ -7,7 +7,6 @@
 //! With neither it fails and says what to install, unless
 //! `FARFIELD_ALLOW_NO_GPU=1` lets GPU tests skip.
 
-use std::process::Command;
 use std::sync::Arc;
 
 use farfield_protocol::camera::Camera;
@@ -39,12 +38,7 @@ fn a_window_surface_is_drawn_and_presented_without_a_readback() {
         eprintln!("skipping the surface test: no Xvfb and no X display");
         return;
     };
-    let output = Command::new(std::env::current_exe().expect("test binary"))
-        .args([
-            "surface::draw_into_a_window_child",
-            "--exact",
-            "--nocapture",
-        ])
+    let output = farfield_tests::child_test("surface::draw_into_a_window_child")
         .env(CHILD_ENV, "1")
         .env("DISPLAY", &display)
         .env_remove("WAYLAND_DISPLAY")
@@ -63,6 +57,7 @@ fn a_window_surface_is_drawn_and_presented_without_a_readback() {
 
 /// The child: a window, its surface, a renderer on it, three frames.
 #[test]
+#[ignore = "subprocess entry point: run by its parent test"]
 fn draw_into_a_window_child() {
     if std::env::var_os(CHILD_ENV).is_none() {
         return;

@@ -1,7 +1,7 @@
 //! A private X server for tests that open windows.
 
 use std::process::{Child, Command, Stdio};
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 /// An Xvfb server on a free display, killed when dropped.
 pub(crate) struct Xvfb {
@@ -24,39 +24,46 @@ impl Drop for Xvfb {
     }
 }
 
-/// Starts Xvfb on the first free display from :90 (no socket and no lock
-/// file), waiting for its socket.
+/// Starts Xvfb on a free display of its own choosing (`-displayfd`: it
+/// writes the display's number once it accepts connections). Choosing here
+/// by looking for a free lock file raced: two tests in parallel took the
+/// same display, and the first to finish killed the other's X server.
 pub(crate) fn start_xvfb() -> Option<Xvfb> {
-    for n in 90..190 {
-        let socket = format!("/tmp/.X11-unix/X{n}");
-        let lock = format!("/tmp/.X{n}-lock");
-        if std::path::Path::new(&socket).exists() || std::path::Path::new(&lock).exists() {
-            continue;
-        }
-        let display = format!(":{n}");
-        let child = Command::new("Xvfb")
-            .args([
-                display.as_str(),
-                "-screen",
-                "0",
-                "640x480x24",
-                "-nolisten",
-                "tcp",
-            ])
-            .stdout(Stdio::null())
-            .stderr(Stdio::null())
-            .spawn()
-            .ok()?;
-        let xvfb = Xvfb { child, display };
-        let started = Instant::now();
-        while started.elapsed() < Duration::from_secs(10) {
-            if std::path::Path::new(&socket).exists() {
-                return Some(xvfb);
-            }
-            std::thread::sleep(Duration::from_millis(50));
-        }
-    }
-    None
+    use std::io::{BufRead, BufReader};
+    let mut child = Command::new("Xvfb")
+        .args([
+            "-displayfd",
+            "1",
+            "-screen",
+            "0",
+            "640x480x24",
+            "-nolisten",
+            "tcp",
+        ])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::null())
+        .spawn()
+        .ok()?;
+    let stdout = child.stdout.take()?;
+    let (tx, rx) = std::sync::mpsc::channel();
+    std::thread::spawn(move || {
+        let mut reader = BufReader::new(stdout);
+        let mut line = String::new();
+        let _ = reader.read_line(&mut line);
+        let _ = tx.send(line);
+        // Read on to the end, so the server never writes into a closed pipe.
+        let _ = std::io::copy(&mut reader, &mut std::io::sink());
+    });
+    let number = rx
+        .recv_timeout(Duration::from_secs(10))
+        .ok()
+        .and_then(|line| line.trim().parse::<u32>().ok());
+    let xvfb = Xvfb {
+        child,
+        display: format!(":{}", number.unwrap_or(0)),
+    };
+    // Dropped without a display: the server is stopped.
+    number.map(|_| xvfb)
 }
 
 impl Xvfb {

@@ -37,3 +37,24 @@ pub fn scratch(name: &str) -> PathBuf {
     std::fs::create_dir_all(&dir).expect("create scratch folder");
     dir
 }
+
+/// This test binary again, on the one ignored test `name`: a subprocess
+/// entry point, for tests that need a process of their own (a window, a
+/// display, a resource limit, a signal, an environment). Entry points are
+/// marked `#[ignore = "subprocess entry point: run by its parent test"]`:
+/// half of a test is not a test, and in a normal run one would pass at once
+/// with nothing to do, so they are not counted among the passing ones.
+/// See [`child_ran`] for checking that it ran.
+pub fn child_test(name: &str) -> std::process::Command {
+    let mut command = std::process::Command::new(std::env::current_exe().expect("test binary"));
+    command.args([name, "--exact", "--ignored", "--nocapture"]);
+    command
+}
+
+/// Whether a [`child_test`]'s output shows its entry point ran and passed:
+/// a filter that matched nothing also exits with success.
+pub fn child_ran(stdout: &[u8]) -> bool {
+    String::from_utf8_lossy(stdout)
+        .lines()
+        .any(|l| l.starts_with("test result: ok. 1 passed"))
+}

@@ -374,7 +374,12 @@ impl ChildServer {
             }
         }
         let mut child = command
-            .args(["serve::serve_cli_child", "--exact", "--nocapture"])
+            .args([
+                "serve::serve_cli_child",
+                "--exact",
+                "--ignored",
+                "--nocapture",
+            ])
             .env("FARFIELD_SERVE_CHILD_DIR", scenes)
             .env("FARFIELD_SERVE_CHILD_ARGS", extra_args)
             .envs(envs.iter().map(|(k, v)| (k, v)))
