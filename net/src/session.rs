@@ -28,7 +28,6 @@ use farfield_protocol::messages::{
     SessionState, SharedView,
 };
 use farfield_protocol::page::claimed_index;
-use farfield_traverse::WantedPage;
 use web_time::Instant;
 
 use crate::stats::{FailedPage, NetStats};
@@ -559,7 +558,7 @@ impl<T: Transport> Session<T> {
     /// Sends new wishes and cancels stale ones. `wanted` is the traversal's
     /// list (most urgent first); a wish whose priority moved by less than a
     /// quarter is not sent again.
-    pub fn request(&mut self, wanted: &[WantedPage]) {
+    pub fn request(&mut self, wanted: &[PageWish]) {
         if !self.is_connected() {
             return;
         }
@@ -568,7 +567,7 @@ impl<T: Transport> Session<T> {
         let mut still: HashMap<u32, f32> = HashMap::with_capacity(wanted.len());
         // Under a bound, pages already on their way stay; new ones are
         // admitted highest priority first into the room left.
-        let mut order: Vec<&WantedPage> = wanted.iter().collect();
+        let mut order: Vec<&PageWish> = wanted.iter().collect();
         let mut held_back = VecDeque::new();
         let mut room = usize::MAX;
         if let Some(bound) = self.options.max_outstanding {
@@ -583,7 +582,7 @@ impl<T: Transport> Session<T> {
             if self.gave_up(w.page) {
                 continue;
             }
-            let priority = w.priority.min(f64::from(f32::MAX)) as f32;
+            let priority = w.priority.min(f32::MAX);
             match self.requested.get(&w.page).map(|w| w.priority) {
                 Some(p) if (p - priority).abs() <= 0.25 * p.abs() => {}
                 Some(_) => new.push(PageWish {

@@ -10,9 +10,8 @@ use farfield_protocol::codec::{
 };
 use farfield_protocol::hierarchy::Hierarchy;
 use farfield_protocol::messages::{
-    ClientMessage, MAX_HEADER_BYTES, PROTOCOL_VERSION, ServerMessage,
+    ClientMessage, MAX_HEADER_BYTES, PROTOCOL_VERSION, PageWish, ServerMessage,
 };
-use farfield_traverse::WantedPage;
 
 use super::*;
 use crate::queue::QueueTransport;
@@ -71,10 +70,10 @@ fn sent(wire: &QueueTransport) -> Vec<ClientMessage> {
         .collect()
 }
 
-fn wanted(pages: &[u32]) -> Vec<WantedPage> {
+fn wanted(pages: &[u32]) -> Vec<PageWish> {
     pages
         .iter()
-        .map(|&page| WantedPage {
+        .map(|&page| PageWish {
             page,
             priority: 10.0,
         })
@@ -241,11 +240,11 @@ fn latencies_run_from_the_first_request_to_arrival_and_only_for_pages_asked_for(
     std::thread::sleep(Duration::from_millis(30));
     // A new priority for page 1 does not restart its clock.
     s.request(&[
-        WantedPage {
+        PageWish {
             page: 1,
             priority: 100.0,
         },
-        WantedPage {
+        PageWish {
             page: 2,
             priority: 10.0,
         },
@@ -523,7 +522,7 @@ fn a_bound_on_outstanding_pages_asks_for_the_most_urgent_first_and_the_rest_as_p
     wire.push(frame(encode_header_frame(&file.header.encode())));
     s.pump(Duration::ZERO).expect("pump");
     sent(&wire);
-    let wish = |page, priority| WantedPage { page, priority };
+    let wish = |page, priority| PageWish { page, priority };
     s.request(&[wish(1, 10.0), wish(2, 30.0), wish(3, 20.0)]);
     assert_eq!(requested(&sent(&wire)), vec![2, 3]);
     assert_eq!(s.outstanding(), 2);

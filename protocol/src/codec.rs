@@ -43,9 +43,17 @@ pub fn encode_control<T: Serialize>(message: &T) -> Vec<u8> {
 
 /// A page frame: the kind byte, then the page bytes as stored.
 pub fn encode_page_frame(page: &[u8]) -> Vec<u8> {
-    let mut out = Vec::with_capacity(page.len() + 1);
-    out.push(FrameKind::Page as u8);
+    let mut out = page_frame_to_fill(page.len());
     out.extend_from_slice(page);
+    out
+}
+
+/// A page frame with its page still to come: the kind byte, and room for
+/// `page_len` bytes to be appended. The server reads a page from its file
+/// straight into this, so a cached frame is sent without another copy.
+pub fn page_frame_to_fill(page_len: usize) -> Vec<u8> {
+    let mut out = Vec::with_capacity(page_len + 1);
+    out.push(FrameKind::Page as u8);
     out
 }
 

@@ -33,7 +33,7 @@ use std::sync::{Arc, Condvar, Mutex};
 
 use axum::body::Bytes;
 use farfield_protocol::FormatError;
-use farfield_protocol::messages::FrameKind;
+use farfield_protocol::codec;
 use farfield_store::PageError;
 use lru::LruCache;
 
@@ -395,12 +395,9 @@ impl PageCache {
             match read {
                 Ok(bytes) => {
                     Metrics::add(&metrics.disk_read_bytes, bytes.len() as u64);
-                    let mut frame = Vec::with_capacity(bytes.len() + 1);
-                    frame.push(FrameKind::Page as u8);
-                    frame.extend_from_slice(&bytes);
                     self.insert(
                         (scene.id, page),
-                        Bytes::from(frame),
+                        Bytes::from(codec::encode_page_frame(&bytes)),
                         Purpose::Ahead,
                         metrics,
                     );
@@ -471,8 +468,7 @@ impl PageCache {
 /// and agreement with the directory.
 fn read_verified(scene: &ServedScene, page: u32, metrics: &Metrics) -> Result<Bytes, PageError> {
     let len = scene.page_len(page).unwrap_or(0) as usize;
-    let mut frame = Vec::with_capacity(len + 1);
-    frame.push(FrameKind::Page as u8);
+    let mut frame = codec::page_frame_to_fill(len);
     Metrics::add(&metrics.disk_reads, 1);
     Metrics::add(&metrics.disk_read_bytes, len as u64);
     scene.source.read_page(page, &mut frame)?;

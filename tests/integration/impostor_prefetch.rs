@@ -122,13 +122,13 @@ fn leaves_about_to_enter_the_view_are_wanted_below_the_frame() {
         .iter()
         .take(own)
         .map(|w| w.priority)
-        .fold(f64::INFINITY, f64::min);
+        .fold(f32::INFINITY, f32::min);
     let highest_entering = cut
         .wanted
         .iter()
         .skip(own)
         .map(|w| w.priority)
-        .fold(0.0, f64::max);
+        .fold(0.0, f32::max);
     assert_eq!(cut.wanted.len(), own + entering);
     assert!(
         highest_entering < lowest_own,

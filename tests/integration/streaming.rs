@@ -502,7 +502,7 @@ fn sessions_driven_as_tasks_fetch_every_page() {
     use farfield_net::websocket::drive;
     use farfield_net::{Session, SessionEvent, stream_url};
     use farfield_protocol::hierarchy::Hierarchy;
-    use farfield_traverse::WantedPage;
+    use farfield_protocol::messages::PageWish;
     let (dir, _) = scenes("driven");
     let rt = runtime();
     let server = serve(&rt, &dir, 0);
@@ -530,9 +530,9 @@ fn sessions_driven_as_tasks_fetch_every_page() {
                         }
                     }
                     let Some(h) = &hierarchy else { return true };
-                    let missing: Vec<WantedPage> = (0..h.header.pages.len() as u32)
+                    let missing: Vec<PageWish> = (0..h.header.pages.len() as u32)
                         .filter(|&p| !h.is_resident(p as usize))
-                        .map(|page| WantedPage {
+                        .map(|page| PageWish {
                             page,
                             priority: 1.0,
                         })

@@ -23,8 +23,8 @@ use anyhow::Context;
 use farfield_net::queue::QueueTransport;
 use farfield_net::websocket::drive;
 use farfield_net::{Session, SessionEvent, SessionOptions, stream_url};
+use farfield_protocol::messages::PageWish;
 use farfield_render::{Kernel, Renderer, SplatStyle};
-use farfield_traverse::WantedPage;
 use farfield_view::camera_spec::CameraSpec;
 use farfield_view::frame_loop::{LastCut, Until, draw_frame};
 use farfield_view::render_job::{RenderJob, Source, run};
@@ -296,8 +296,8 @@ async fn stream_all(
     };
     let wire = QueueTransport::default();
     let mut session = Session::open(wire.clone(), url, options);
-    let all: Vec<WantedPage> = (0..pages)
-        .map(|page| WantedPage {
+    let all: Vec<PageWish> = (0..pages)
+        .map(|page| PageWish {
             page,
             priority: 1.0,
         })

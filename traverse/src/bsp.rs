@@ -24,7 +24,8 @@ use farfield_protocol::file::HierarchyKind;
 use farfield_protocol::hierarchy::{BspPage, Hierarchy};
 
 use crate::Counts;
-use crate::wanted::{PageTracker, WantedPage, want_page_zero};
+use crate::wanted::{PageTracker, want_page_zero};
+use farfield_protocol::messages::PageWish;
 
 /// A leaf drawn as geometry.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -50,7 +51,7 @@ pub struct BspCut {
     pub leaves: Vec<LeafDraw>,
     /// Placements in view whose prototype is resident, in leaf order.
     pub instances: Vec<InstanceDraw>,
-    pub wanted: Vec<WantedPage>,
+    pub wanted: Vec<PageWish>,
     pub touched_pages: Vec<u32>,
     /// BSP nodes visited.
     pub visited: u64,
@@ -266,7 +267,7 @@ impl crate::Traversal for CullingTraversal {
         crate::DrawList::Bsp(&self.cut)
     }
 
-    fn wanted(&self) -> &[WantedPage] {
+    fn wanted(&self) -> &[PageWish] {
         &self.cut.wanted
     }
 

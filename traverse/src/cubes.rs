@@ -17,7 +17,8 @@ use farfield_protocol::cube_codec::{Face, Rgba8};
 use farfield_protocol::file::HierarchyKind;
 use farfield_protocol::hierarchy::{Hierarchy, ResidentPage};
 
-use crate::wanted::{PageTracker, WantedPage, want_page_zero};
+use crate::wanted::{PageTracker, want_page_zero};
+use farfield_protocol::messages::PageWish;
 
 /// Knobs of one cube traversal.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -86,7 +87,7 @@ pub struct LeafDraw {
 pub struct CubeCut {
     pub faces: Vec<FaceDraw>,
     pub leaves: Vec<LeafDraw>,
-    pub wanted: Vec<WantedPage>,
+    pub wanted: Vec<PageWish>,
     pub visited: u64,
     pub frustum_culled: u64,
     /// Triangles of the drawn leaves.
@@ -367,7 +368,7 @@ impl crate::Traversal for CubeTraversal {
         crate::DrawList::Cubes(&self.cut)
     }
 
-    fn wanted(&self) -> &[WantedPage] {
+    fn wanted(&self) -> &[PageWish] {
         &self.cut.wanted
     }
 

@@ -4,7 +4,7 @@
 //! Traversal neither draws nor fetches: it reads a
 //! [`Hierarchy`](farfield_protocol::hierarchy::Hierarchy) (whichever pages
 //! are resident), walks it for one camera and yields a [`DrawList`] for the
-//! renderer and the [`WantedPage`]s, with priorities, for the client
+//! renderer and the [`PageWish`](farfield_protocol::messages::PageWish)s, with priorities, for the client
 //! session. The frame loop, the benches and the CLI drive every kind
 //! through this interface and never name one.
 //!
@@ -35,7 +35,6 @@ use farfield_protocol::file::HierarchyKind;
 use farfield_protocol::hierarchy::Hierarchy;
 
 pub use budget::Budget;
-pub use wanted::WantedPage;
 
 /// What every kind is asked besides the pages and the camera.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -103,7 +102,7 @@ pub trait Traversal: std::fmt::Debug {
     /// What to draw.
     fn draw_list(&self) -> DrawList<'_>;
     /// Pages the cut would descend into, most urgent first.
-    fn wanted(&self) -> &[WantedPage];
+    fn wanted(&self) -> &[farfield_protocol::messages::PageWish];
     /// Pages the cut read, ascending (with `record_pages`).
     fn touched_pages(&self) -> &[u32];
     fn counts(&self) -> Counts;

@@ -35,8 +35,9 @@ use farfield_protocol::file::HierarchyKind;
 use farfield_protocol::hierarchy::{Hierarchy, PlpPage};
 use farfield_protocol::plp_codec::{CellPage, NO_NEIGHBOUR, Skeleton, face_corners};
 
-use crate::wanted::{PageTracker, WantedPage, want_page_zero};
+use crate::wanted::{PageTracker, want_page_zero};
 use crate::{Budget, Counts};
+use farfield_protocol::messages::PageWish;
 
 /// Which order cells and triangles are drawn in.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -140,7 +141,7 @@ pub struct PlpCut {
     pub triangles: Vec<TriangleDraw>,
     /// Cells in the order they were projected.
     pub projected: Vec<u32>,
-    pub wanted: Vec<WantedPage>,
+    pub wanted: Vec<PageWish>,
     pub touched_pages: Vec<u32>,
     /// The budget in triangles this frame (`u64::MAX` unlimited).
     pub budget: u64,
@@ -640,7 +641,7 @@ impl crate::Traversal for PlpTraversal {
         crate::DrawList::Triangles(&self.cut)
     }
 
-    fn wanted(&self) -> &[WantedPage] {
+    fn wanted(&self) -> &[PageWish] {
         &self.cut.wanted
     }
 

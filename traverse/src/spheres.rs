@@ -13,7 +13,8 @@ use farfield_protocol::camera::{Camera, Containment, View};
 use farfield_protocol::hierarchy::Hierarchy;
 use farfield_protocol::sphere_codec::{self, NodeRecord};
 
-use crate::wanted::{PageTracker, WantedPage, want_page_zero};
+use crate::wanted::{PageTracker, want_page_zero};
+use farfield_protocol::messages::PageWish;
 
 /// What to draw for one node.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -55,7 +56,7 @@ impl Default for TraverseOptions {
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct Cut {
     pub splats: Vec<Splat>,
-    pub wanted: Vec<WantedPage>,
+    pub wanted: Vec<PageWish>,
     /// Nodes whose record was read.
     pub visited: u64,
     pub frustum_culled: u64,
@@ -282,7 +283,7 @@ impl crate::Traversal for SphereTraversal {
         crate::DrawList::Splats(&self.cut.splats)
     }
 
-    fn wanted(&self) -> &[WantedPage] {
+    fn wanted(&self) -> &[PageWish] {
         &self.cut.wanted
     }
 

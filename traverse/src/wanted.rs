@@ -1,13 +1,18 @@
 //! What every traversal kind reports besides its draw list: the pages it
-//! would descend into ([`WantedPage`], most urgent first) and the pages it
-//! read, tracked per traversal by [`PageTracker`].
+//! would descend into (the protocol's [`PageWish`], as the client sends
+//! it, most urgent first) and the pages it read, tracked per traversal by
+//! [`PageTracker`]. A wish's priority is the node's projected size,
+//! discounted off-centre: larger is more urgent.
 
-/// A page the traversal would have descended into.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct WantedPage {
-    pub page: u32,
-    /// Larger is more urgent: projected size, discounted off-centre.
-    pub priority: f64,
+use farfield_protocol::messages::PageWish;
+
+/// A wish for `page` at `priority`, held in the wire's `f32` (an infinite
+/// or larger priority is the largest finite one).
+fn wish(page: u32, priority: f64) -> PageWish {
+    PageWish {
+        page,
+        priority: priority.min(f64::from(f32::MAX)) as f32,
+    }
 }
 
 /// The pages one traversal touched and wished for: what both hierarchy
@@ -47,21 +52,21 @@ impl PageTracker {
     }
 
     /// Writes the touched pages and the wishes, most urgent first.
-    pub fn finish(self, touched: &mut Vec<u32>, wanted: &mut Vec<WantedPage>) {
+    pub fn finish(self, touched: &mut Vec<u32>, wanted: &mut Vec<PageWish>) {
         touched.extend((0..self.touched.len() as u32).filter(|&p| self.touched[p as usize]));
+        // Ordered in f64, before the priorities are rounded to the wire's
+        // f32, so that close priorities keep their order.
+        let mut wishes: Vec<(u32, f64)> = self.wanted.into_iter().collect();
+        wishes.sort_by(|a, b| b.1.total_cmp(&a.1).then(a.0.cmp(&b.0)));
         wanted.extend(
-            self.wanted
+            wishes
                 .into_iter()
-                .map(|(page, priority)| WantedPage { page, priority }),
+                .map(|(page, priority)| wish(page, priority)),
         );
-        wanted.sort_by(|a, b| b.priority.total_cmp(&a.priority).then(a.page.cmp(&b.page)));
     }
 }
 
 /// The wish when not even page 0 is resident.
-pub fn want_page_zero(wanted: &mut Vec<WantedPage>) {
-    wanted.push(WantedPage {
-        page: 0,
-        priority: f64::INFINITY,
-    });
+pub fn want_page_zero(wanted: &mut Vec<PageWish>) {
+    wanted.push(wish(0, f64::INFINITY));
 }

@@ -13,10 +13,9 @@ use std::time::Duration;
 use anyhow::bail;
 use farfield_protocol::camera::Camera;
 use farfield_protocol::file::{FileHeader, HierarchyKind};
+use farfield_protocol::messages::PageWish;
 use farfield_render::{Renderer, SplatStyle};
-use farfield_traverse::{
-    Budget, Counts, DrawList, Registered, Traversal, TraversalOptions, WantedPage,
-};
+use farfield_traverse::{Budget, Counts, DrawList, Registered, Traversal, TraversalOptions};
 use serde::Serialize;
 use web_time::Instant;
 
@@ -139,7 +138,7 @@ impl LastCut {
     }
 
     /// Pages the last traversal would have descended into, most urgent first.
-    pub fn wanted(&self) -> &[WantedPage] {
+    pub fn wanted(&self) -> &[PageWish] {
         self.traversal.as_ref().map_or(&[], |t| t.wanted())
     }
 

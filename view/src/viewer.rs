@@ -21,7 +21,7 @@ use farfield_net::{
 };
 use farfield_protocol::file::FileHeader;
 use farfield_protocol::hierarchy::Hierarchy;
-use farfield_traverse::WantedPage;
+use farfield_protocol::messages::PageWish;
 use lru::LruCache;
 use web_time::Instant;
 
@@ -286,7 +286,7 @@ impl Viewer {
     ///
     /// Pages that arrived and wait to be inserted are not asked for: they
     /// are here already.
-    pub fn request(&mut self, wanted: &[WantedPage]) {
+    pub fn request(&mut self, wanted: &[PageWish]) {
         let kept = self.affordable(wanted);
         let Some(s) = self.session.as_mut() else {
             return;
@@ -294,7 +294,7 @@ impl Viewer {
         if self.arrived.is_empty() {
             s.request(&wanted[..kept]);
         } else {
-            let missing: Vec<WantedPage> = wanted[..kept]
+            let missing: Vec<PageWish> = wanted[..kept]
                 .iter()
                 .filter(|w| !self.arrived.contains(&w.page))
                 .copied()
@@ -305,7 +305,7 @@ impl Viewer {
 
     /// How many of `wanted` (most urgent first) fit the cache beside the
     /// last frame's pages.
-    fn affordable(&self, wanted: &[WantedPage]) -> usize {
+    fn affordable(&self, wanted: &[PageWish]) -> usize {
         let Some(h) = self.hierarchy.as_ref() else {
             return wanted.len();
         };

@@ -128,10 +128,10 @@ fn requests_stop_where_the_cache_could_not_keep_them_beside_the_frames_pages() {
     wire.push(frame(encode_page_frame(&file.pages[1])));
     v.pump(Duration::ZERO).expect("pump");
     v.touch(&[0, 1]);
-    let wanted: Vec<WantedPage> = (2..8)
-        .map(|p| WantedPage {
+    let wanted: Vec<PageWish> = (2..8)
+        .map(|p| PageWish {
             page: p,
-            priority: 100.0 - f64::from(p),
+            priority: 100.0 - p as f32,
         })
         .collect();
     v.request(&wanted);
@@ -166,10 +166,10 @@ fn pages_waiting_to_be_inserted_are_not_asked_for_again() {
     }
     assert_eq!(v.pump_for(Duration::ZERO).expect("pump"), 1);
     assert_eq!(v.pending_pages(), 2, "pages 2 and 3 wait");
-    let wanted: Vec<WantedPage> = (2..5)
-        .map(|p| WantedPage {
+    let wanted: Vec<PageWish> = (2..5)
+        .map(|p| PageWish {
             page: p,
-            priority: 10.0 - f64::from(p),
+            priority: 10.0 - p as f32,
         })
         .collect();
     v.request(&wanted);

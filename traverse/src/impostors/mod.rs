@@ -24,7 +24,8 @@ use farfield_protocol::hierarchy::Hierarchy;
 pub use cost::CostModel;
 pub use plan::{ImpostorCut, ImpostorOptions, Planner};
 
-use crate::{Counts, WantedPage};
+use crate::Counts;
+use farfield_protocol::messages::PageWish;
 
 /// Registers image caching (see [`crate::KINDS`]): the first kind for BSP
 /// files.
@@ -68,7 +69,7 @@ impl crate::Traversal for ImpostorTraversal {
         crate::DrawList::Impostors(&self.cut)
     }
 
-    fn wanted(&self) -> &[WantedPage] {
+    fn wanted(&self) -> &[PageWish] {
         &self.cut.wanted
     }
 

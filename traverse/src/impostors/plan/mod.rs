@@ -41,7 +41,8 @@ use super::atlas::{Atlas, Block};
 use super::cost::CostModel;
 use super::safety::{QuadPlane, Zone, epsilon_angle};
 use crate::bsp::InstanceDraw;
-use crate::wanted::{PageTracker, WantedPage, want_page_zero};
+use crate::wanted::{PageTracker, want_page_zero};
+use farfield_protocol::messages::PageWish;
 
 /// Knobs of the impostor planner.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -183,7 +184,7 @@ pub struct ImpostorCut {
     pub job_items: Vec<Item>,
     /// Placements the items' ranges point into.
     pub instances: Vec<InstanceDraw>,
-    pub wanted: Vec<WantedPage>,
+    pub wanted: Vec<PageWish>,
     pub touched_pages: Vec<u32>,
     pub visited: u64,
     pub frustum_culled: u64,
