@@ -59,6 +59,29 @@ impl HierarchyKind {
             Self::Bsp => "bsp",
         }
     }
+
+    /// How the kind's nodes are laid out in pages: what a reader may assume
+    /// of a page's children without knowing the kind.
+    pub fn layout(self) -> PageLayout {
+        match self {
+            Self::Spheres | Self::Cubes => PageLayout::BreadthFirst,
+            Self::Plp | Self::Bsp => PageLayout::SkeletonFirst,
+        }
+    }
+}
+
+/// The two shapes of a file's pages.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum PageLayout {
+    /// Nodes breadth first, a subtree's top levels to a page: the children
+    /// of a page's nodes are the next pages' (a page's `first_child` to the
+    /// next page's), so they are worth reading ahead.
+    BreadthFirst,
+    /// A skeleton in page 0 whose root's children are every leaf, then a
+    /// page or more per leaf: a root's "children" are the whole scene, so
+    /// reading them ahead would read it all; clients ask in their own
+    /// order.
+    SkeletonFirst,
 }
 
 /// Which optional channels the nodes carry. A scene stores only what it

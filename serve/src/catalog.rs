@@ -19,7 +19,7 @@ use tokio::sync::watch;
 
 use super::ServeError;
 use farfield_protocol::codec::encode_header_frames;
-use farfield_protocol::file::FileHeader;
+use farfield_protocol::file::{FileHeader, PageLayout};
 use farfield_store::{PageSource, Stamp, StoreError};
 
 use super::origin::Location;
@@ -188,14 +188,13 @@ impl ServedScene {
 /// `first_child` to the next page's (or to the node count for the last
 /// page); the pages holding that range are found through the directory.
 ///
-/// A PLP tessellation has none to offer: its root's children are every
-/// cell, so reading them ahead would read the whole scene. Its clients ask
-/// in their own projection order, which is the prefetch order. The same
-/// holds for an image-caching BSP, whose root's children are every leaf.
+/// A skeleton-first file (PLP's tessellation, image caching's BSP) has
+/// none to offer: its root's children are every leaf, so reading them
+/// ahead would read the whole scene. Its clients ask in their own order,
+/// which is the prefetch order.
 fn child_ranges(h: &FileHeader) -> Vec<Range<u32>> {
     let n = h.pages.len();
-    use farfield_protocol::file::HierarchyKind;
-    if matches!(h.kind, HierarchyKind::Plp | HierarchyKind::Bsp) {
+    if h.kind.layout() == PageLayout::SkeletonFirst {
         return vec![0..0; n];
     }
     (0..n)

@@ -245,6 +245,7 @@ pub const CULLING: crate::Registered = crate::Registered {
     reference_threshold_px: 0.0,
     reference: "every leaf in view as geometry",
     adaptive_threshold: false,
+    measures_costs: false,
     make: || Box::new(CullingTraversal::default()),
 };
 

@@ -339,6 +339,7 @@ pub const REGISTERED: crate::Registered = crate::Registered {
     reference: "the cube hierarchy's geometry (eps 0)",
 
     adaptive_threshold: true,
+    measures_costs: false,
     make: || Box::new(CubeTraversal::default()),
 };
 

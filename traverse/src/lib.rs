@@ -81,6 +81,29 @@ pub enum DrawList<'a> {
     Impostors(&'a impostors::ImpostorCut),
 }
 
+impl DrawList<'_> {
+    /// Cube faces and triangles to draw, for reports: (0, 0) for splats;
+    /// a kind that draws triangles counts its own.
+    pub fn faces_and_triangles(&self) -> (usize, u64) {
+        match self {
+            DrawList::Splats(_) => (0, 0),
+            DrawList::Cubes(cut) => (cut.faces.len(), cut.triangles),
+            DrawList::Triangles(cut) => (0, cut.triangles.len() as u64),
+            DrawList::Bsp(cut) => (0, cut.triangles),
+            // (Its leaves' triangles are in its stats.)
+            DrawList::Impostors(_) => (0, 0),
+        }
+    }
+
+    /// Image caching's caches of this frame; `None` for other kinds.
+    pub fn impostor_stats(&self) -> Option<impostors::plan::ImpostorStats> {
+        match self {
+            DrawList::Impostors(cut) => Some(cut.stats),
+            _ => None,
+        }
+    }
+}
+
 /// How much of the hierarchy one traversal looked at.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, serde::Serialize)]
 pub struct Counts {
@@ -132,6 +155,11 @@ pub struct Registered {
     /// and refine (splat size, eps); `false` where it is an error bound
     /// every frame must hold (image caching's ε) or is not read.
     pub adaptive_threshold: bool,
+    /// Whether the traversal reads what drawing costs on this machine
+    /// ([`TraversalOptions::costs`]): a frame loop then has the renderer
+    /// measure it once, before the first frame (image caching, which
+    /// weighs a cached image against its geometry).
+    pub measures_costs: bool,
     pub make: fn() -> Box<dyn Traversal>,
 }
 

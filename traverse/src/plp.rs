@@ -588,6 +588,7 @@ pub const REGISTERED: crate::Registered = crate::Registered {
     reference_threshold_px: 0.0,
     reference: "every triangle (budget 100%)",
     adaptive_threshold: false,
+    measures_costs: false,
     make: || Box::new(PlpTraversal::new(Order::Solidity)),
 };
 
@@ -599,6 +600,7 @@ pub const CENTROID: crate::Registered = crate::Registered {
     reference_threshold_px: 0.0,
     reference: "every triangle (budget 100%)",
     adaptive_threshold: false,
+    measures_costs: false,
     make: || Box::new(PlpTraversal::new(Order::Centroid)),
 };
 

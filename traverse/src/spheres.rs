@@ -256,6 +256,7 @@ pub const REGISTERED: crate::Registered = crate::Registered {
     reference: "the sphere hierarchy at 1 px",
 
     adaptive_threshold: true,
+    measures_costs: false,
     make: || Box::new(SphereTraversal::default()),
 };
 

@@ -223,10 +223,7 @@ fn stat(
     frame_ms: f64,
     resting: bool,
 ) -> FrameStat {
-    let impostors = match cut.draw_list() {
-        Some(farfield_traverse::DrawList::Impostors(c)) => Some(c.stats),
-        _ => None,
-    };
+    let impostors = cut.draw_list().and_then(|l| l.impostor_stats());
     FrameStat {
         frame,
         path_s,

@@ -63,8 +63,9 @@ pub struct LastCut {
     /// caching's ε) keeps on every frame, whatever the loop asks while it
     /// refines or follows a frame time.
     pub final_threshold: Option<f64>,
-    /// Image caching's cost model, measured by the renderer before the
-    /// first frame of a BSP file (`None` until then).
+    /// What drawing costs on this machine, measured by the renderer before
+    /// the first frame of a kind that reads it (`Registered::measures_costs`;
+    /// `None` until then).
     pub costs: Option<farfield_traverse::impostors::CostModel>,
     /// The eyes of the frames to come, when the path is known (see
     /// [`LastCut::set_known_path`]).
@@ -239,7 +240,7 @@ pub fn draw_frame(
 ) -> anyhow::Result<FrameTimes> {
     if viewer
         .header()
-        .is_some_and(|h| h.kind == HierarchyKind::Bsp)
+        .is_some_and(|h| cut.kind_for(h.kind).measures_costs)
         && cut.costs.is_none()
     {
         cut.costs = Some(renderer.measure_impostor_costs()?);

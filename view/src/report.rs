@@ -5,7 +5,6 @@ use std::path::PathBuf;
 
 use farfield_net::{FailedPage, NetStats};
 use farfield_render::Renderer;
-use farfield_traverse::DrawList;
 use serde::Serialize;
 
 use crate::frame_loop::Settle;
@@ -65,12 +64,10 @@ impl Settle {
                     .sum();
                 (needed > 0).then(|| stats.bytes_received as f64 / needed as f64)
             });
-        let (cube_faces_drawn, triangles_drawn) = match self.cut.draw_list() {
-            Some(DrawList::Cubes(cut)) => (cut.faces.len(), cut.triangles),
-            Some(DrawList::Triangles(cut)) => (0, cut.triangles.len() as u64),
-            Some(DrawList::Bsp(cut)) => (0, cut.triangles),
-            _ => (0, 0),
-        };
+        let (cube_faces_drawn, triangles_drawn) = self
+            .cut
+            .draw_list()
+            .map_or((0, 0), |list| list.faces_and_triangles());
         let (width, height) = renderer.size();
         RenderReport {
             out: None,
@@ -94,10 +91,7 @@ impl Settle {
             last_error: self.error.clone().or(stats.last_error.clone()),
             pages_failed: viewer.failed_pages(),
             impostor_costs: self.cut.costs,
-            impostors: match self.cut.draw_list() {
-                Some(DrawList::Impostors(cut)) => Some(cut.stats),
-                _ => None,
-            },
+            impostors: self.cut.draw_list().and_then(|l| l.impostor_stats()),
         }
     }
 }

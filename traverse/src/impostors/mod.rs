@@ -37,6 +37,7 @@ pub const REGISTERED: crate::Registered = crate::Registered {
     reference_threshold_px: 0.0,
     reference: "every leaf in view as geometry (epsilon 0)",
     adaptive_threshold: false,
+    measures_costs: true,
     make: || Box::new(ImpostorTraversal::default()),
 };
 
