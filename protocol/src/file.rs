@@ -60,6 +60,13 @@ impl HierarchyKind {
         }
     }
 
+    /// Whether the kind's pages carry a payload after their node records
+    /// (cells' colors and triangles, tessellation cells, BSP leaves); a
+    /// sphere page is its records and nothing more.
+    pub fn pages_carry_payload(self) -> bool {
+        self != Self::Spheres
+    }
+
     /// How the kind's nodes are laid out in pages: what a reader may assume
     /// of a page's children without knowing the kind.
     pub fn layout(self) -> PageLayout {

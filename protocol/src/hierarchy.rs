@@ -126,31 +126,8 @@ impl Hierarchy {
     /// checksum, carries another checksum than the directory's, or does
     /// not agree with the directory is rejected whole.
     pub fn insert_page(&mut self, index: u32, bytes: &[u8]) -> Result<(), FormatError> {
-        let entry = *self
-            .header
-            .pages
-            .get(index as usize)
-            .ok_or(FormatError::BadPage {
-                page: index,
-                message: format!("no such page ({} pages)", self.header.pages.len()),
-            })?;
-        crate::page::check_against_entry(&entry, index, bytes)?;
-        let page = match self.header.kind {
-            HierarchyKind::Spheres => Page::parse(bytes, index, self.header.node_bytes)?,
-            HierarchyKind::Cubes | HierarchyKind::Plp | HierarchyKind::Bsp => {
-                Page::parse_with_payload(bytes, index, self.header.node_bytes)?
-            }
-        };
+        let page = crate::page::check_page(&self.header, index, bytes)?;
         let h = page.header;
-        if h.first_node != entry.first_node
-            || h.node_count != entry.node_count
-            || h.first_child != entry.first_child
-        {
-            return Err(FormatError::BadPage {
-                page: index,
-                message: "page disagrees with the directory".into(),
-            });
-        }
         let (child_counts, cubes, plp, bsp) = match self.header.kind {
             HierarchyKind::Spheres => (self.sphere_child_counts(&page)?, None, None, None),
             HierarchyKind::Cubes => {
@@ -628,6 +605,32 @@ mod tests {
                 "{e}"
             );
         }
+    }
+
+    /// The one page check refuses a page whose header says another node
+    /// count or first child than its directory entry (checksums agreeing),
+    /// a page the directory does not have, and passes the page as stored;
+    /// the hierarchy refuses what it refuses.
+    #[test]
+    fn one_page_check_compares_the_page_with_its_directory_entry() {
+        let (header, page) = root_page(2, 1, 2, 3);
+        assert!(crate::page::check_page(&header, 0, &page).is_ok());
+        for edit in [
+            |e: &mut crate::file::PageEntry| e.node_count += 1,
+            |e: &mut crate::file::PageEntry| e.first_child += 1,
+        ] {
+            let mut forged = header.clone();
+            edit(&mut forged.pages[0]);
+            let e = crate::page::check_page(&forged, 0, &page).unwrap_err();
+            assert!(
+                e.to_string().contains("disagrees with the directory"),
+                "{e}"
+            );
+            let mut h = Hierarchy::new(forged).unwrap();
+            assert!(h.insert_page(0, &page).is_err());
+        }
+        let missing = crate::page::check_page(&header, 5, &page).unwrap_err();
+        assert!(missing.to_string().contains("no such page"), "{missing}");
     }
 
     /// The pages of a sphere file (records of identity spheres, so no

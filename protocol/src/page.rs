@@ -47,6 +47,45 @@ pub fn claimed_index(page: &[u8]) -> Option<u32> {
     Some(u32::from_le_bytes(bytes.try_into().ok()?))
 }
 
+/// The one check of a page, for every reader (the client inserting what
+/// it received, the server and the store reading what they hold): page
+/// `index` of the file `header` describes exists, `bytes` agree with its
+/// directory entry (length and checksum, [`check_against_entry`]) and
+/// checksum themselves, parse as a page of the file's kind, and the page's
+/// header says what the directory says (its first node, node count and
+/// first child). What a kind's payload holds is checked where it is
+/// decoded.
+pub fn check_page<'a>(
+    header: &crate::file::FileHeader,
+    index: u32,
+    bytes: &'a [u8],
+) -> Result<Page<'a>, FormatError> {
+    let entry = *header
+        .pages
+        .get(index as usize)
+        .ok_or(FormatError::BadPage {
+            page: index,
+            message: format!("no such page ({} pages)", header.pages.len()),
+        })?;
+    check_against_entry(&entry, index, bytes)?;
+    let page = if header.kind.pages_carry_payload() {
+        Page::parse_with_payload(bytes, index, header.node_bytes)?
+    } else {
+        Page::parse(bytes, index, header.node_bytes)?
+    };
+    let h = page.header;
+    if h.first_node != entry.first_node
+        || h.node_count != entry.node_count
+        || h.first_child != entry.first_child
+    {
+        return Err(FormatError::BadPage {
+            page: index,
+            message: "page disagrees with the directory".into(),
+        });
+    }
+    Ok(page)
+}
+
 /// Checks that `bytes`, received or read as page `index`, are the page the
 /// directory `entry` describes: its length and the checksum in its last
 /// four bytes. The page's own checksum only proves the bytes agree with

@@ -3,8 +3,8 @@
 //! object read by range requests fail the same checks with the same errors.
 
 use farfield_protocol::FormatError;
-use farfield_protocol::file::{FileHeader, HierarchyKind, PageEntry};
-use farfield_protocol::page::Page;
+use farfield_protocol::file::{FileHeader, PageEntry};
+use farfield_protocol::page::check_page;
 
 /// How much of a scene is read first to find its header's length.
 pub const HEADER_PROBE_BYTES: u64 = 64 << 10;
@@ -63,9 +63,10 @@ pub fn page_entry(header: &FileHeader, index: usize) -> Result<PageEntry, Format
         })
 }
 
-/// Checks `bytes`, read for page `index` of the scene `header` describes:
-/// its length, its checksum (its own, and the directory's copy of it), its
-/// page header, and its agreement with the directory.
+/// Checks `bytes`, read for page `index` of the scene `header` describes,
+/// as the client will check them ([`check_page`]: its length, its checksum
+/// and the directory's copy of it, its page header, and its agreement with
+/// the directory). A read that came back short is a truncated page.
 pub fn verify_page(header: &FileHeader, index: usize, bytes: &[u8]) -> Result<(), FormatError> {
     let entry = page_entry(header, index)?;
     if bytes.len() != entry.length as usize {
@@ -75,18 +76,5 @@ pub fn verify_page(header: &FileHeader, index: usize, bytes: &[u8]) -> Result<()
             have: bytes.len() as u64,
         });
     }
-    farfield_protocol::page::check_against_entry(&entry, index as u32, bytes)?;
-    let page = match header.kind {
-        HierarchyKind::Spheres => Page::parse(bytes, index as u32, header.node_bytes)?,
-        HierarchyKind::Cubes | HierarchyKind::Plp | HierarchyKind::Bsp => {
-            Page::parse_with_payload(bytes, index as u32, header.node_bytes)?
-        }
-    };
-    if page.header.first_node != entry.first_node {
-        return Err(FormatError::BadPage {
-            page: index as u32,
-            message: "disagrees with the directory".into(),
-        });
-    }
-    Ok(())
+    check_page(header, index as u32, bytes).map(|_| ())
 }
