@@ -29,12 +29,53 @@ pub struct ResidentPage {
     child_offset: Vec<u32>,
     /// Bytes of the page as received (for cache accounting).
     pub byte_len: usize,
+    /// What the page holds beyond its node records, decoded once on
+    /// arrival: one payload, of the file's kind.
+    payload: PagePayload,
+}
+
+/// A resident page's decoded contents, by hierarchy kind.
+#[derive(Debug, Clone)]
+pub enum PagePayload {
+    /// Sphere pages are their node records (`ResidentPage::records`).
+    Spheres,
     /// Color-cube pages: each cell's record and decoded payload.
-    pub cubes: Option<CubePage>,
+    Cubes(CubePage),
     /// PLP pages: the skeleton (page 0) or cells' triangles.
-    pub plp: Option<PlpPage>,
+    Plp(PlpPage),
     /// Image-caching BSP pages: the tree (page 0), a prototype or a leaf.
-    pub bsp: Option<BspPage>,
+    Bsp(BspPage),
+}
+
+impl ResidentPage {
+    /// The page's payload, whichever the kind.
+    pub fn payload(&self) -> &PagePayload {
+        &self.payload
+    }
+
+    /// A color-cube page's cells; `None` for other kinds.
+    pub fn cubes(&self) -> Option<&CubePage> {
+        match &self.payload {
+            PagePayload::Cubes(c) => Some(c),
+            _ => None,
+        }
+    }
+
+    /// A PLP page's skeleton or cells; `None` for other kinds.
+    pub fn plp(&self) -> Option<&PlpPage> {
+        match &self.payload {
+            PagePayload::Plp(p) => Some(p),
+            _ => None,
+        }
+    }
+
+    /// An image-caching BSP page's tree or content; `None` for other kinds.
+    pub fn bsp(&self) -> Option<&BspPage> {
+        match &self.payload {
+            PagePayload::Bsp(b) => Some(b),
+            _ => None,
+        }
+    }
 }
 
 /// A resident BSP page, decoded once on arrival.
@@ -128,20 +169,20 @@ impl Hierarchy {
     pub fn insert_page(&mut self, index: u32, bytes: &[u8]) -> Result<(), FormatError> {
         let page = crate::page::check_page(&self.header, index, bytes)?;
         let h = page.header;
-        let (child_counts, cubes, plp, bsp) = match self.header.kind {
-            HierarchyKind::Spheres => (self.sphere_child_counts(&page)?, None, None, None),
+        let (child_counts, payload) = match self.header.kind {
+            HierarchyKind::Spheres => (self.sphere_child_counts(&page)?, PagePayload::Spheres),
             HierarchyKind::Cubes => {
                 let cubes = self.cube_page(&page)?;
                 let counts = cubes.records.iter().map(CubeRecord::child_count).collect();
-                (counts, Some(cubes), None, None)
+                (counts, PagePayload::Cubes(cubes))
             }
             HierarchyKind::Plp => {
                 let (counts, plp) = self.plp_page(&page)?;
-                (counts, None, Some(plp), None)
+                (counts, PagePayload::Plp(plp))
             }
             HierarchyKind::Bsp => {
                 let (counts, bsp) = self.bsp_page(&page)?;
-                (counts, None, None, Some(bsp))
+                (counts, PagePayload::Bsp(bsp))
             }
         };
         // Every child must be a real node after its parent, and the page's
@@ -183,20 +224,18 @@ impl Hierarchy {
         self.resident_bytes += bytes.len();
         self.pages[index as usize] = Some(ResidentPage {
             header: h,
-            // Cube, PLP and BSP records live decoded in their own fields.
-            records: if cubes.is_some() || plp.is_some() || bsp.is_some() {
-                Vec::new()
-            } else {
+            // Other kinds' records live decoded in their payload.
+            records: if matches!(payload, PagePayload::Spheres) {
                 let mut r = Vec::with_capacity(page.records.len() + 8);
                 r.extend_from_slice(page.records);
                 r.extend_from_slice(&[0; 8]);
                 r
+            } else {
+                Vec::new()
             },
             child_offset,
             byte_len: bytes.len(),
-            cubes,
-            plp,
-            bsp,
+            payload,
         });
         Ok(())
     }
@@ -332,7 +371,7 @@ impl Hierarchy {
 
     /// The BSP tree, once page 0 is resident.
     pub fn bsp_skeleton(&self) -> Option<&BspSkeleton> {
-        match self.page(0)?.bsp.as_ref()? {
+        match self.page(0)?.bsp()? {
             BspPage::Skeleton(s) => Some(s),
             BspPage::Content(_) => None,
         }
@@ -340,7 +379,7 @@ impl Hierarchy {
 
     /// The PLP skeleton, once page 0 is resident.
     pub fn plp_skeleton(&self) -> Option<&Skeleton> {
-        match self.page(0)?.plp.as_ref()? {
+        match self.page(0)?.plp()? {
             PlpPage::Skeleton(s) => Some(s),
             PlpPage::Cells(_) => None,
         }

@@ -177,7 +177,7 @@ pub(crate) fn place(
 ) -> Option<(PrototypeKey, GpuInstance)> {
     let page = draw.prototype_page;
     let Some(BspPage::Content(ContentPage::Prototype(proto))) =
-        h.page(page as usize).and_then(|p| p.bsp.as_ref())
+        h.page(page as usize).and_then(|p| p.bsp())
     else {
         return None;
     };

@@ -288,7 +288,7 @@ pub fn pack_leaves(h: &Hierarchy, cut: &CubeCut, eye: DVec3, out: &mut Vec<GpuVe
     for leaf in &cut.leaves {
         let Some(g) = h
             .page(leaf.page as usize)
-            .and_then(|p| p.cubes.as_ref())
+            .and_then(|p| p.cubes())
             .and_then(|c| c.payload(leaf.local as usize))
             .and_then(|p| p.geometry.as_ref())
         else {

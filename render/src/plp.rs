@@ -14,8 +14,7 @@ use crate::GpuVertex;
 pub fn pack_plp(h: &Hierarchy, cut: &PlpCut, eye: DVec3, out: &mut Vec<GpuVertex>) {
     out.reserve(cut.triangles.len() * 3);
     for t in &cut.triangles {
-        let Some(PlpPage::Cells(page)) = h.page(t.page as usize).and_then(|p| p.plp.as_ref())
-        else {
+        let Some(PlpPage::Cells(page)) = h.page(t.page as usize).and_then(|p| p.plp()) else {
             continue;
         };
         let Some(stored) = page.triangles.get(t.index as usize) else {

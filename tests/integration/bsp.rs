@@ -64,7 +64,7 @@ fn everything(h: &Hierarchy, eye: DVec3) -> Vec<GpuVertex> {
             let world = p.world_from_local(page.anchor);
             let page = farfield_protocol::bsp_codec::BspSkeleton::prototype_page(p.prototype);
             let Some(BspPage::Content(ContentPage::Prototype(proto))) =
-                h.page(page as usize).and_then(|p| p.bsp.as_ref())
+                h.page(page as usize).and_then(|p| p.bsp())
             else {
                 panic!("prototype page {page} is not resident");
             };

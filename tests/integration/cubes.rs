@@ -229,7 +229,7 @@ fn a_quad_colors_exactly_the_two_faces_that_see_it() {
     let color = [200, 100, 50];
     let h = resident(&cubes(Scene::single(quad_x(0.5, color))));
     assert_eq!(h.header.nodes, 1);
-    let rec = h.page(0).unwrap().cubes.as_ref().unwrap().records[0];
+    let rec = h.page(0).unwrap().cubes().unwrap().records[0];
     let base = Vec3::from(color.map(|c| f32::from(c) / 255.0));
     for face in Face::ALL {
         let f = rec.faces[face.index()];
@@ -393,7 +393,7 @@ fn thirty_levels_deep_keeps_cell_relative_precision() {
     assert!(cut.triangles >= 40, "{} triangles drawn", cut.triangles);
     let mut matched = 0;
     for leaf in &cut.leaves {
-        let g = h.page(leaf.page as usize).unwrap().cubes.as_ref().unwrap();
+        let g = h.page(leaf.page as usize).unwrap().cubes().unwrap();
         let geometry = g
             .payload(leaf.local as usize)
             .unwrap()

@@ -267,7 +267,7 @@ fn node_vertices(h: &Hierarchy, n: u32) -> Vec<DVec3> {
                     let world = p.world_from_local(page.anchor);
                     let proto = BspSkeleton::prototype_page(p.prototype);
                     if let Some(BspPage::Content(ContentPage::Prototype(proto))) =
-                        h.page(proto as usize).and_then(|p| p.bsp.as_ref())
+                        h.page(proto as usize).and_then(|p| p.bsp())
                     {
                         for t in &proto.triangles {
                             out.extend(

@@ -141,8 +141,7 @@ fn drawn_spheres(h: &Hierarchy, list: DrawList<'_>) -> Vec<(DVec3, f64)> {
             .triangles
             .iter()
             .map(|t| {
-                let Some(PlpPage::Cells(page)) =
-                    h.page(t.page as usize).and_then(|p| p.plp.as_ref())
+                let Some(PlpPage::Cells(page)) = h.page(t.page as usize).and_then(|p| p.plp())
                 else {
                     panic!(
                         "drew a triangle of page {}, which is not a resident cell page",

@@ -137,8 +137,7 @@ fn assert_finds_what_is_in_view(h: &Hierarchy, camera: &Camera, plp: &PlpCut, wh
             && rel.dot(view.up).abs() < depth * view.tan_half_y * 0.999
     };
     for t in &baseline.triangles {
-        let Some(PlpPage::Cells(page)) = h.page(t.page as usize).and_then(|p| p.plp.as_ref())
-        else {
+        let Some(PlpPage::Cells(page)) = h.page(t.page as usize).and_then(|p| p.plp()) else {
             panic!("not a cell page");
         };
         let corners = page.triangles[t.index as usize]
@@ -207,8 +206,7 @@ fn the_front_rows_come_before_the_hidden_ones() {
     // A budget of one row's front faces: PLP should spend it up front.
     let cut = walk(&h, &front(), Budget::Triangles(24), Order::Solidity);
     let depth_of = |t: &farfield_traverse::plp::TriangleDraw| {
-        let Some(PlpPage::Cells(page)) = h.page(t.page as usize).and_then(|p| p.plp.as_ref())
-        else {
+        let Some(PlpPage::Cells(page)) = h.page(t.page as usize).and_then(|p| p.plp()) else {
             panic!("not a cell page");
         };
         let c = page.triangles[t.index as usize]
@@ -298,7 +296,7 @@ fn a_huge_triangle_crossing_many_cells_is_drawn_once() {
     // Stored in many cells (and pages), drawn once.
     let mut cells = 0;
     for page in file.pages.iter().enumerate().skip(1).map(|(i, _)| i) {
-        if let Some(PlpPage::Cells(p)) = h.page(page).and_then(|p| p.plp.as_ref()) {
+        if let Some(PlpPage::Cells(p)) = h.page(page).and_then(|p| p.plp()) {
             for local in 0..p.starts.len() - 1 {
                 cells += p.cell(local).filter(|t| t.id == huge_id).count();
             }

@@ -105,7 +105,7 @@ pub fn node_priority(view: &View, min: DVec3, max: DVec3) -> (f64, f64) {
 
 /// A resident leaf page, if `page` is one.
 pub fn leaf_page(h: &Hierarchy, page: u32) -> Option<&LeafPage> {
-    match h.page(page as usize)?.bsp.as_ref()? {
+    match h.page(page as usize)?.bsp()? {
         BspPage::Content(ContentPage::Leaf(l)) => Some(l),
         _ => None,
     }

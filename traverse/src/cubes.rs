@@ -153,7 +153,7 @@ pub fn traverse_cubes_into(
         let Some(page) = h.page(item.page as usize) else {
             continue;
         };
-        let Some(cubes) = page.cubes.as_ref() else {
+        let Some(cubes) = page.cubes() else {
             continue;
         };
         let Some(rec) = cubes.records.get(item.local as usize) else {
@@ -284,7 +284,7 @@ fn draw_cube(
     cluster_levels: u32,
     cut: &mut CubeCut,
 ) {
-    let Some(cubes) = page.cubes.as_ref() else {
+    let Some(cubes) = page.cubes() else {
         return;
     };
     let mut emit = |min: DVec3, edge: f64, faces: &[Rgba8; 6], level: u32| {

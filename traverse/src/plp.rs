@@ -453,7 +453,7 @@ impl<'a> Walk<'a> {
         let node = 1 + u64::from(c);
         let index = h.header.page_of(node)?;
         let page = h.page(index)?;
-        let Some(PlpPage::Cells(cells)) = page.plp.as_ref() else {
+        let Some(PlpPage::Cells(cells)) = page.plp() else {
             return None;
         };
         self.pages.touch(index as u32);

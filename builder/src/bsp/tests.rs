@@ -74,7 +74,7 @@ fn hierarchy(file: &PagedFile) -> Hierarchy {
 fn leaf_pages(h: &Hierarchy) -> Vec<farfield_protocol::bsp_codec::LeafPage> {
     let s = h.bsp_skeleton().expect("page 0");
     (0..s.leaves)
-        .map(|l| match &h.page(s.leaf_page(l) as usize).unwrap().bsp {
+        .map(|l| match h.page(s.leaf_page(l) as usize).unwrap().bsp() {
             Some(BspPage::Content(ContentPage::Leaf(p))) => {
                 assert_eq!(p.leaf, l);
                 p.clone()
@@ -108,7 +108,7 @@ fn an_island_splits_in_the_gaps_between_trees_and_keeps_them_instances() {
     assert_eq!(s.directions, vec![DVec3::X, DVec3::Y]);
     assert_eq!(s.scene_triangles, 32 * 32 * 2 + 16 * 4);
     // The prototype's page holds the tree once.
-    match &h.page(1).unwrap().bsp {
+    match h.page(1).unwrap().bsp() {
         Some(BspPage::Content(ContentPage::Prototype(p))) => assert_eq!(p.triangles.len(), 4),
         other => panic!("{other:?}"),
     }
