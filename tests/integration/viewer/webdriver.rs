@@ -11,6 +11,11 @@ use std::time::{Duration, Instant};
 use base64::Engine;
 use serde_json::{Value, json};
 
+/// How long fingers rest after touching down and before lifting (ms).
+const TOUCH_HOLD_MS: u64 = 1000;
+/// How long each step of a finger's path takes (ms).
+const TOUCH_STEP_MS: u64 = 250;
+
 /// A browser session; the browser and its driver end when dropped.
 pub(crate) struct Browser {
     driver: Child,
@@ -230,7 +235,12 @@ impl Browser {
     }
 
     /// Fingers on a touch screen, each a path of CSS pixel points, moving
-    /// together (one step each 40 ms), lifted at the end.
+    /// together, lifted at the end.
+    ///
+    /// Each stage lasts longer than a loaded machine's slowest frames (CI
+    /// saw 370 ms): a viewer sees a drag only when one frame finds the
+    /// fingers down and a later one finds them moved. Done in 200 ms, a
+    /// gesture fell inside one frame there and the camera never moved.
     pub(crate) fn touch(&self, fingers: &[&[(i64, i64)]]) {
         let sources: Vec<Value> = fingers
             .iter()
@@ -240,11 +250,13 @@ impl Browser {
                     json!({"type": "pointerMove", "duration": 0, "origin": "viewport",
                            "x": path[0].0, "y": path[0].1}),
                     json!({"type": "pointerDown", "button": 0}),
+                    json!({"type": "pause", "duration": TOUCH_HOLD_MS}),
                 ];
                 for &(x, y) in &path[1..] {
-                    actions.push(json!({"type": "pointerMove", "duration": 40,
+                    actions.push(json!({"type": "pointerMove", "duration": TOUCH_STEP_MS,
                                         "origin": "viewport", "x": x, "y": y}));
                 }
+                actions.push(json!({"type": "pause", "duration": TOUCH_HOLD_MS}));
                 actions.push(json!({"type": "pointerUp", "button": 0}));
                 json!({"type": "pointer", "id": format!("finger{i}"),
                        "parameters": {"pointerType": "touch"}, "actions": actions})
