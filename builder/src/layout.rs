@@ -8,8 +8,8 @@
 //! into pages in breadth-first order; a page holds whole sibling groups and
 //! page 0 ends on a level boundary, so it is a complete coarse model.
 
-use farfield_protocol::file::{AttributeFlags, FileHeader, HierarchyKind, PageEntry, place_pages};
-use farfield_protocol::page::{PAGE_CHECKSUM_BYTES, PAGE_HEADER_BYTES, PageHeader, encode_page};
+use farfield_protocol::file::{AttributeFlags, FileHeader, HierarchyKind};
+use farfield_protocol::page::{PAGE_CHECKSUM_BYTES, PAGE_HEADER_BYTES, PageHeader};
 use farfield_protocol::paged_file::PagedFile;
 use farfield_protocol::sphere_codec::{self, ChildCount, NodeLayout, NodeRecord};
 use glam::{DVec3, Vec3};
@@ -18,6 +18,7 @@ use rayon::prelude::*;
 use super::leaves::{Leaf, cone_from_u8, unpack_normal};
 use super::progress::Progress;
 use super::tree::{NodeRef, SharedNodes, Tree};
+use crate::page_writer::PageWriter;
 
 /// What `lay_out` needs besides the tree.
 #[derive(Debug, Clone, Copy)]
@@ -171,10 +172,7 @@ pub fn lay_out(tree: Tree, input: LayoutInput, progress: &dyn Progress) -> Paged
     drop(tree);
     drop(leaf_list);
     drop(interior);
-    let (mut pages_dir, page_bytes) = pages.finish();
-    // Pages follow the header; offsets are known once the page count is.
-    place_pages(&mut pages_dir);
-    let header = FileHeader {
+    let mut file = pages.finish().finish(FileHeader {
         cluster: 0,
         kind: HierarchyKind::Spheres,
         attributes: AttributeFlags {
@@ -193,13 +191,10 @@ pub fn lay_out(tree: Tree, input: LayoutInput, progress: &dyn Progress) -> Paged
         bounds_max: input.bounds_max,
         root_center,
         root_radius,
-        pages: pages_dir,
-    };
-    PagedFile {
-        header,
-        pages: page_bytes,
-        leaf_sources,
-    }
+        pages: Vec::new(),
+    });
+    file.leaf_sources = leaf_sources;
+    file
 }
 
 /// Parents whose sibling groups are quantized per window: enough work to
@@ -482,8 +477,8 @@ struct PageCutter {
     page0_done: bool,
     page0_level_end: usize,
     page0_level_count: (u32, u64),
-    entries: Vec<PageEntry>,
-    pages: Vec<Vec<u8>>,
+    /// The pages finished so far.
+    written: PageWriter,
     next_node: u64,
 }
 
@@ -498,8 +493,7 @@ impl PageCutter {
             page0_done: false,
             page0_level_end: 0,
             page0_level_count: (0, 0),
-            entries: Vec::new(),
-            pages: Vec::new(),
+            written: PageWriter::default(),
             next_node: 0,
         }
     }
@@ -513,7 +507,7 @@ impl PageCutter {
     fn add_group(&mut self, level: u32, group: &[u8], first_child: u64) {
         let group_nodes = (group.len() / self.node_bytes) as u64;
         if self.page.is_some() && self.records.len() + group.len() > self.capacity() {
-            if self.entries.is_empty() {
+            if self.written.is_empty() {
                 self.flush_page0();
             } else {
                 self.flush();
@@ -521,7 +515,7 @@ impl PageCutter {
         }
         let level = level as u16;
         let page = self.page.get_or_insert(PageHeader {
-            index: self.entries.len() as u32,
+            index: self.written.len() as u32,
             first_node: self.next_node,
             first_child,
             node_count: 0,
@@ -536,7 +530,7 @@ impl PageCutter {
 
     /// Called after each complete level: remembers where page 0 could end.
     fn end_level(&mut self) {
-        if self.entries.is_empty()
+        if self.written.is_empty()
             && !self.page0_done
             && let Some(p) = &self.page
         {
@@ -565,7 +559,8 @@ impl PageCutter {
         self.flush();
         // The rest of the open page becomes the start of page 1. Its first
         // child is found by walking the child counts of page 0's records.
-        let first_child = page0_next_child(&self.pages[0], head, self.node_bytes);
+        let page0 = self.written.page(0).expect("page 0 was just written");
+        let first_child = page0_next_child(page0, head, self.node_bytes);
         self.records = tail_records;
         self.page = Some(PageHeader {
             index: 1,
@@ -584,16 +579,13 @@ impl PageCutter {
         let Some(header) = self.page.take() else {
             return;
         };
-        let (bytes, checksum) = encode_page(&header, &self.records);
-        self.entries
-            .push(PageEntry::of(&header, bytes.len(), checksum));
-        self.pages.push(bytes);
+        self.written.push(&header, &self.records, &[]);
         self.records.clear();
     }
 
-    fn finish(mut self) -> (Vec<PageEntry>, Vec<Vec<u8>>) {
+    fn finish(mut self) -> PageWriter {
         self.flush();
-        (self.entries, self.pages)
+        self.written
     }
 }
 

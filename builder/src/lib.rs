@@ -20,9 +20,11 @@ pub mod import;
 pub mod scene;
 
 pub mod cubes;
+pub mod kinds;
 pub mod knn;
 pub mod layout;
 pub mod leaves;
+pub mod page_writer;
 pub mod plp;
 pub mod progress;
 pub mod tree;

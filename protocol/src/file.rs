@@ -22,74 +22,7 @@ pub const PAGE_ENTRY_BYTES: usize = 40;
 /// the whole header is ([`FileHeader::peek_len`]).
 pub const HEADER_PREFIX_BYTES: usize = 16;
 
-/// Which hierarchy the nodes form.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum HierarchyKind {
-    /// QSplat's bounding-sphere hierarchy.
-    Spheres = 1,
-    /// Chamberlain et al.'s color-cube octree.
-    Cubes = 2,
-    /// Klosowski and Silva's PLP tessellation: a root whose children are
-    /// Delaunay cells (`plp_codec`).
-    Plp = 3,
-    /// Shade et al.'s image-caching BSP: a root whose children are shared
-    /// prototypes and BSP leaves, a page each (`bsp_codec`).
-    Bsp = 4,
-}
-
-impl HierarchyKind {
-    fn from_u8(v: u8) -> Result<Self, FormatError> {
-        match v {
-            1 => Ok(Self::Spheres),
-            2 => Ok(Self::Cubes),
-            3 => Ok(Self::Plp),
-            4 => Ok(Self::Bsp),
-            other => Err(FormatError::BadHeader(format!(
-                "unknown hierarchy kind {other}"
-            ))),
-        }
-    }
-
-    pub fn name(self) -> &'static str {
-        match self {
-            Self::Spheres => "spheres",
-            Self::Cubes => "cubes",
-            Self::Plp => "plp",
-            Self::Bsp => "bsp",
-        }
-    }
-
-    /// Whether the kind's pages carry a payload after their node records
-    /// (cells' colors and triangles, tessellation cells, BSP leaves); a
-    /// sphere page is its records and nothing more.
-    pub fn pages_carry_payload(self) -> bool {
-        self != Self::Spheres
-    }
-
-    /// How the kind's nodes are laid out in pages: what a reader may assume
-    /// of a page's children without knowing the kind.
-    pub fn layout(self) -> PageLayout {
-        match self {
-            Self::Spheres | Self::Cubes => PageLayout::BreadthFirst,
-            Self::Plp | Self::Bsp => PageLayout::SkeletonFirst,
-        }
-    }
-}
-
-/// The two shapes of a file's pages.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum PageLayout {
-    /// Nodes breadth first, a subtree's top levels to a page: the children
-    /// of a page's nodes are the next pages' (a page's `first_child` to the
-    /// next page's), so they are worth reading ahead.
-    BreadthFirst,
-    /// A skeleton in page 0 whose root's children are every leaf, then a
-    /// page or more per leaf: a root's "children" are the whole scene, so
-    /// reading them ahead would read it all; clients ask in their own
-    /// order.
-    SkeletonFirst,
-}
+pub use crate::kinds::{HierarchyKind, PageLayout};
 
 /// Which optional channels the nodes carry. A scene stores only what it
 /// has: a molecule of spheres has no normals, a bare scan has no color.
@@ -344,77 +277,7 @@ impl FileHeader {
         if !(self.bounds_min.is_finite() && self.bounds_max.is_finite()) {
             return bad("bounds are not finite".into());
         }
-        match self.kind {
-            HierarchyKind::Spheres if self.node_bytes == 0 || self.node_bytes > 8 => {
-                return bad(format!("node size {} is out of range", self.node_bytes));
-            }
-            HierarchyKind::Spheres if self.cluster != 0 => {
-                return bad(format!(
-                    "a sphere hierarchy has cluster size {}",
-                    self.cluster
-                ));
-            }
-            HierarchyKind::Cubes if self.node_bytes != crate::cube_codec::RECORD_BYTES as u32 => {
-                return bad(format!(
-                    "cube node size {} is not {}",
-                    self.node_bytes,
-                    crate::cube_codec::RECORD_BYTES
-                ));
-            }
-            HierarchyKind::Cubes if !crate::cube_codec::valid_cluster(self.cluster) => {
-                return bad(format!(
-                    "cluster size {} is not a power of two up to {}",
-                    self.cluster,
-                    crate::cube_codec::MAX_CLUSTER
-                ));
-            }
-            HierarchyKind::Plp if self.node_bytes != crate::plp_codec::NODE_BYTES as u32 => {
-                return bad(format!(
-                    "PLP node size {} is not {}",
-                    self.node_bytes,
-                    crate::plp_codec::NODE_BYTES
-                ));
-            }
-            HierarchyKind::Bsp if self.node_bytes != crate::bsp_codec::NODE_BYTES as u32 => {
-                return bad(format!(
-                    "BSP node size {} is not {}",
-                    self.node_bytes,
-                    crate::bsp_codec::NODE_BYTES
-                ));
-            }
-            HierarchyKind::Bsp
-                if self.cluster != 0
-                    || self.leaves.checked_add(1) != Some(self.nodes)
-                    || self.levels != 2
-                    || self.pages.len() as u64 != self.nodes
-                    || self
-                        .pages
-                        .first()
-                        .is_some_and(|p| p.node_count != 1 || p.first_child != 1) =>
-            {
-                return bad(format!(
-                    "a BSP file is a root alone in page 0 and one prototype or leaf a page after it ({} nodes, {} pages, cluster {})",
-                    self.nodes,
-                    self.pages.len(),
-                    self.cluster
-                ));
-            }
-            HierarchyKind::Plp
-                if self.cluster != 0
-                    || self.leaves.checked_add(1) != Some(self.nodes)
-                    || self.levels != 2
-                    || self
-                        .pages
-                        .first()
-                        .is_some_and(|p| p.node_count != 1 || p.first_child != 1) =>
-            {
-                return bad(format!(
-                    "a PLP tessellation is a root alone in page 0 and its cells after ({} nodes, {} leaves, cluster {})",
-                    self.nodes, self.leaves, self.cluster
-                ));
-            }
-            _ => {}
-        }
+        self.kind.check_header(self).or_else(bad)?;
         let mut next = 0u64;
         for (i, p) in self.pages.iter().enumerate() {
             if p.first_node != next || p.node_count == 0 {

@@ -147,13 +147,7 @@ impl Hierarchy {
             normals: header.attributes.normals,
             color: header.attributes.color,
         };
-        if header.kind == HierarchyKind::Spheres && layout.bytes() != header.node_bytes {
-            return Err(FormatError::BadHeader(format!(
-                "node size {} does not match the attributes ({} expected)",
-                header.node_bytes,
-                layout.bytes()
-            )));
-        }
+        header.kind.check_node_layout(layout, header.node_bytes)?;
         let pages = vec![None; header.pages.len()];
         Ok(Self {
             header,
@@ -169,22 +163,7 @@ impl Hierarchy {
     pub fn insert_page(&mut self, index: u32, bytes: &[u8]) -> Result<(), FormatError> {
         let page = crate::page::check_page(&self.header, index, bytes)?;
         let h = page.header;
-        let (child_counts, payload) = match self.header.kind {
-            HierarchyKind::Spheres => (self.sphere_child_counts(&page)?, PagePayload::Spheres),
-            HierarchyKind::Cubes => {
-                let cubes = self.cube_page(&page)?;
-                let counts = cubes.records.iter().map(CubeRecord::child_count).collect();
-                (counts, PagePayload::Cubes(cubes))
-            }
-            HierarchyKind::Plp => {
-                let (counts, plp) = self.plp_page(&page)?;
-                (counts, PagePayload::Plp(plp))
-            }
-            HierarchyKind::Bsp => {
-                let (counts, bsp) = self.bsp_page(&page)?;
-                (counts, PagePayload::Bsp(bsp))
-            }
-        };
+        let (child_counts, payload) = self.header.kind.decode_page(self, &page)?;
         // Every child must be a real node after its parent, and the page's
         // children exactly the nodes from its first child to the next
         // page's (the directory's first children then split the nodes
@@ -241,7 +220,7 @@ impl Hierarchy {
     }
 
     /// Child counts of a sphere page's nodes, checking every code.
-    fn sphere_child_counts(&self, page: &Page) -> Result<Vec<u32>, FormatError> {
+    pub(crate) fn sphere_child_counts(&self, page: &Page) -> Result<Vec<u32>, FormatError> {
         let node_bytes = self.header.node_bytes as usize;
         let sphere_codes = sphere_codec::sphere_table().len();
         (0..page.header.node_count as usize)
@@ -262,7 +241,7 @@ impl Hierarchy {
 
     /// Decodes a cube page's records and payloads; every payload byte must
     /// belong to a cell and decode cleanly.
-    fn cube_page(&self, page: &Page) -> Result<CubePage, FormatError> {
+    pub(crate) fn cube_page(&self, page: &Page) -> Result<CubePage, FormatError> {
         let bad = |message: String| FormatError::BadPage {
             page: page.header.index,
             message,
@@ -331,7 +310,7 @@ impl Hierarchy {
     /// Decodes a PLP page: page 0 is the root (its record the cell count)
     /// and the skeleton; every other page holds cells, which have no
     /// children.
-    fn plp_page(&self, page: &Page) -> Result<(Vec<u32>, PlpPage), FormatError> {
+    pub(crate) fn plp_page(&self, page: &Page) -> Result<(Vec<u32>, PlpPage), FormatError> {
         let bad = |message: String| FormatError::BadPage {
             page: page.header.index,
             message,
@@ -353,7 +332,7 @@ impl Hierarchy {
     /// Decodes a BSP page: page 0 is the root (its record the number of
     /// pages after it) and the tree; every other page one prototype or
     /// leaf, which have no children in the file.
-    fn bsp_page(&self, page: &Page) -> Result<(Vec<u32>, BspPage), FormatError> {
+    pub(crate) fn bsp_page(&self, page: &Page) -> Result<(Vec<u32>, BspPage), FormatError> {
         let bad = |message: String| FormatError::BadPage {
             page: page.header.index,
             message,
@@ -433,7 +412,7 @@ impl Hierarchy {
     /// order: the reference decoder that tests compare against.
     pub fn decode_all(&self) -> Vec<DecodedNode> {
         let mut out = Vec::new();
-        if self.header.kind != HierarchyKind::Spheres {
+        if !self.header.kind.nodes_are_spheres() {
             return out;
         }
         let Some(root_page) = self.page(0) else {

@@ -35,6 +35,7 @@ pub mod codec;
 pub mod cube_codec;
 pub mod file;
 pub mod hierarchy;
+pub mod kinds;
 pub mod messages;
 pub mod octahedral;
 pub mod page;

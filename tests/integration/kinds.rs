@@ -1,60 +1,41 @@
-//! Every registered traversal kind through one harness: the same scenes
-//! (whole and streamed in part), the same cameras, the same checks. A kind
-//! added to `farfield_traverse::KINDS` is tested here with no change but a
-//! builder for a new hierarchy kind or a new draw list (the matches below
-//! are exhaustive, so the compiler asks for them).
+//! Every hierarchy kind through one harness, from its registries: built by
+//! its builder (`farfield_builder::kinds::BUILDERS`), every page verified
+//! as the store does and decoded as the client does, traversed by each
+//! registered traversal (`farfield_traverse::KINDS`) whole and streamed in
+//! part, and drawn. A new kind is tested here with no change but a new
+//! draw list's bounds (the match below is exhaustive, so the compiler asks).
 
-use farfield_builder::bsp::{BspOptions, build_bsp};
-use farfield_builder::cubes::{CubeOptions, build_cubes};
 use farfield_builder::import::{Params, load_input};
-use farfield_builder::plp::{PlpOptions, build_plp};
-use farfield_builder::{BuildOptions, PagedFile, build_spheres};
+use farfield_builder::kinds::{BUILDERS, BuildSettings, builder_for};
+use farfield_builder::{PagedFile, Silent};
 use farfield_protocol::bsp_codec::Split;
 use farfield_protocol::camera::{Camera, Containment, View};
 use farfield_protocol::file::HierarchyKind;
 use farfield_protocol::hierarchy::{Hierarchy, PlpPage};
+use farfield_render::{Renderer, SplatStyle};
+use farfield_tests::scratch;
 use farfield_traverse::impostors::plan::Item;
-use farfield_traverse::{DrawList, KINDS, TraversalOptions};
+use farfield_traverse::{DrawList, KINDS, TraversalOptions, for_hierarchy};
 use glam::DVec3;
 
-use crate::resident_where;
+use crate::{resident_where, write_and_open};
 
-/// A small tree scene as a file of `kind`, with pages small enough that a
-/// view needs several.
+/// A small tree scene as a file of `kind`, built by the kind's registered
+/// builder, with pages small enough that a view needs several.
 fn file_of(kind: HierarchyKind) -> PagedFile {
     let mut params = Params::default();
     params.set("triangles", 4000);
     let scene = load_input("gen:tree", &params).expect("gen:tree");
-    match kind {
-        HierarchyKind::Spheres => {
-            let options = BuildOptions {
-                page_bytes: 2048,
-                ..BuildOptions::default()
-            };
-            build_spheres(scene, &options).expect("spheres").0
-        }
-        HierarchyKind::Cubes => {
-            let options = CubeOptions {
-                page_bytes: 4096,
-                ..CubeOptions::default()
-            };
-            build_cubes(scene, &options).expect("cubes").0
-        }
-        HierarchyKind::Plp => {
-            let options = PlpOptions {
-                page_bytes: 8192,
-                ..PlpOptions::default()
-            };
-            build_plp(&scene, &options).expect("plp").0
-        }
-        HierarchyKind::Bsp => {
-            let options = BspOptions {
-                leaf_triangles: 500,
-                ..BspOptions::default()
-            };
-            build_bsp(&scene, &options).expect("bsp").0
-        }
-    }
+    let mut settings = BuildSettings::default();
+    settings.spheres.page_bytes = 2048;
+    settings.cubes.page_bytes = 4096;
+    settings.plp.page_bytes = 8192;
+    settings.bsp.leaf_triangles = 500;
+    let builder = builder_for(kind);
+    assert_eq!(builder.kind, kind);
+    (builder.build)(scene, &settings, &Silent)
+        .unwrap_or_else(|e| panic!("{}: {e}", builder.name()))
+        .file
 }
 
 /// Orbits near and far, one looking past the scene's edge, one from inside.
@@ -253,5 +234,63 @@ fn every_kind_draws_nothing_outside_the_frustum_and_wants_only_pages_the_file_ha
             }
         }
         assert!(drew_something, "{}: never drew anything", kind.name);
+    }
+}
+
+#[test]
+fn every_hierarchy_kind_builds_verifies_traverses_and_draws() {
+    assert_eq!(BUILDERS.len(), HierarchyKind::ALL.len());
+    let size = (96, 72);
+    let mut renderer = Renderer::new_headless(size.0, size.1).expect("a headless renderer");
+    let style = SplatStyle::default();
+    let dir = scratch("every-kind");
+    for kind in HierarchyKind::ALL {
+        let name = kind.name();
+        let file = file_of(kind);
+        assert_eq!(
+            file.header.kind, kind,
+            "{name}: the builder wrote another kind"
+        );
+        // Written, every page read back as the server reads it (checked
+        // against the directory) and made resident as the client keeps it
+        // (decoded as the kind's page).
+        let scene = write_and_open(&file, &dir.join(format!("{name}.ff")));
+        assert_eq!(
+            scene.corrupt_pages().len(),
+            0,
+            "{name}: {:?}",
+            scene.corrupt_pages()
+        );
+        let h = scene.load_all().unwrap_or_else(|e| panic!("{name}: {e}"));
+        assert_eq!(h.resident_pages(), file.pages.len(), "{name}");
+        let camera = Camera::orbit(
+            h.header.root_center,
+            h.header.root_radius,
+            30.0,
+            20.0,
+            2.5,
+            size.0,
+            size.1,
+        );
+        let mut traversal = for_hierarchy(kind);
+        traversal.traverse(&h, &camera, &TraversalOptions::default());
+        assert!(
+            traversal.wanted().is_empty(),
+            "{name}: wants pages of a whole file"
+        );
+        let image = renderer
+            .draw(&h, &camera, traversal.draw_list(), &style)
+            .unwrap_or_else(|e| panic!("{name}: draw: {e:#}"));
+        let background = style.background;
+        let drawn = image
+            .rgba
+            .chunks_exact(4)
+            .filter(|p| p[..3] != background)
+            .count();
+        let pixels = (size.0 * size.1) as usize;
+        assert!(
+            drawn * 20 > pixels,
+            "{name}: {drawn} of {pixels} pixels drawn: the tree should cover more than 5 %"
+        );
     }
 }

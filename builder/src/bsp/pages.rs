@@ -6,14 +6,14 @@ use farfield_protocol::bsp_codec::{
     self, BspNode, BspSkeleton, FlatTriangle, LeafPage, Placement as StoredPlacement,
     PrototypeInfo, PrototypePage, Split,
 };
-use farfield_protocol::file::{AttributeFlags, FileHeader, HierarchyKind, PageEntry, place_pages};
-use farfield_protocol::page::{PageHeader, encode_page_with_payload};
+use farfield_protocol::file::{AttributeFlags, HierarchyKind};
 use glam::DVec3;
 
 use super::inflate::Inflated;
 use super::objects::Collected;
 use super::split::{Built, Tree};
 use crate::PagedFile;
+use crate::page_writer::{SceneFacts, SkeletonFirst};
 
 /// What the header records besides the tree.
 #[derive(Debug, Clone, Copy)]
@@ -123,34 +123,14 @@ pub fn lay_out(
         inflation: info.inflation,
     };
     let children = (scene.prototypes.len() + tree.leaves.len()) as u64;
-    let nodes = 1 + children;
-    let mut pages = Vec::new();
-    let mut entries = Vec::new();
-    let mut push = |index: u32, records: &[u8], payload: &[u8]| {
-        let header = PageHeader {
-            index,
-            first_node: u64::from(index),
-            first_child: if index == 0 { 1 } else { nodes },
-            node_count: 1,
-            level_min: u16::from(index != 0),
-            level_max: u16::from(index != 0),
-        };
-        let (bytes, checksum) = encode_page_with_payload(&header, records, payload);
-        entries.push(PageEntry::of(&header, bytes.len(), checksum));
-        pages.push(bytes);
-    };
-    let mut root = (children as u32).to_le_bytes().to_vec();
-    root.extend_from_slice(&0u32.to_le_bytes());
-    push(0, &root, &skeleton.encode(centre));
-    let mut index = 1u32;
+    let mut pages = SkeletonFirst::new(children, &skeleton.encode(centre));
     for (p, proto) in scene.prototypes.iter().enumerate() {
         let (records, payload) = PrototypePage {
             prototype: p as u32,
             triangles: proto.triangles.clone(),
         }
         .encode();
-        push(index, &records, &payload);
-        index += 1;
+        pages.push_leaves(1, &records, &payload);
     }
     let (mut stored_triangles, mut stored_placements) = (0u64, 0u64);
     for (leaf, content) in inflated.iter().enumerate() {
@@ -158,34 +138,23 @@ pub fn lay_out(
         stored_triangles += page.triangles.len() as u64;
         stored_placements += page.placements.len() as u64;
         let (records, payload) = page.encode();
-        push(index, &records, &payload);
-        index += 1;
+        pages.push_leaves(1, &records, &payload);
     }
-    place_pages(&mut entries);
-    let file = PagedFile {
-        header: FileHeader {
-            kind: HierarchyKind::Bsp,
-            attributes: AttributeFlags {
-                color: true,
-                normals: false,
-                leaf_geometry: true,
-            },
-            node_bytes: bsp_codec::NODE_BYTES as u32,
-            cluster: 0,
-            levels: 2,
-            nodes,
-            leaves: children,
-            input_vertices: info.input_vertices,
-            bounds_min,
-            bounds_max,
-            root_center: centre,
-            // A scene that is one point still has a sphere.
-            root_radius: ((bounds_max - bounds_min).length() * 0.5).max(1e-6),
-            pages: entries,
+    let file = pages.finish(SceneFacts {
+        kind: HierarchyKind::Bsp,
+        attributes: AttributeFlags {
+            color: true,
+            normals: false,
+            leaf_geometry: true,
         },
-        pages,
-        leaf_sources: Vec::new(),
-    };
+        node_bytes: bsp_codec::NODE_BYTES as u32,
+        input_vertices: info.input_vertices,
+        bounds_min,
+        bounds_max,
+        root_center: centre,
+        // A scene that is one point still has a sphere.
+        root_radius: ((bounds_max - bounds_min).length() * 0.5).max(1e-6),
+    });
     Laid {
         file,
         stored_triangles,

@@ -5,15 +5,14 @@
 //! payload section holds its cells' sub-cubes and leaf geometry, in order.
 
 use farfield_protocol::cube_codec::{self, CubeRecord, Rgba8, SubCube};
-use farfield_protocol::file::{AttributeFlags, FileHeader, HierarchyKind, PageEntry, place_pages};
-use farfield_protocol::page::{
-    PAGE_CHECKSUM_BYTES, PAGE_HEADER_BYTES, PageHeader, encode_page_with_payload,
-};
+use farfield_protocol::file::{AttributeFlags, FileHeader, HierarchyKind};
+use farfield_protocol::page::{PAGE_CHECKSUM_BYTES, PAGE_HEADER_BYTES, PageHeader};
+use farfield_protocol::paged_file::PagedFile;
 use glam::DVec3;
 
 use super::composite::Faces;
 use super::octree::Cell;
-use farfield_protocol::paged_file::PagedFile;
+use crate::page_writer::PageWriter;
 
 /// What the header needs besides the cells.
 #[derive(Debug, Clone, Copy)]
@@ -145,8 +144,7 @@ pub fn lay_out(root: &Cell, info: LayoutInfo) -> PagedFile {
         }
     }
     ranges.extend(current);
-    let mut entries = Vec::with_capacity(ranges.len());
-    let mut pages = Vec::with_capacity(ranges.len());
+    let mut pages = PageWriter::default();
     for (i, r) in ranges.into_iter().enumerate() {
         let header = PageHeader {
             index: i as u32,
@@ -162,28 +160,21 @@ pub fn lay_out(root: &Cell, info: LayoutInfo) -> PagedFile {
             records.extend_from_slice(&c.record);
             payload.extend_from_slice(&c.payload);
         }
-        let (bytes, checksum) = encode_page_with_payload(&header, &records, &payload);
-        entries.push(PageEntry::of(&header, bytes.len(), checksum));
-        pages.push(bytes);
+        pages.push(&header, &records, &payload);
     }
-    place_pages(&mut entries);
-    PagedFile {
-        header: FileHeader {
-            kind: HierarchyKind::Cubes,
-            attributes: info.attributes,
-            node_bytes: cube_codec::RECORD_BYTES as u32,
-            cluster: info.cluster,
-            levels,
-            nodes: cells.len() as u64,
-            leaves,
-            input_vertices: info.input_vertices,
-            bounds_min: info.bounds_min,
-            bounds_max: info.bounds_max,
-            root_center: info.root_center,
-            root_radius: info.root_half_edge,
-            pages: entries,
-        },
-        pages,
-        leaf_sources: Vec::new(),
-    }
+    pages.finish(FileHeader {
+        kind: HierarchyKind::Cubes,
+        attributes: info.attributes,
+        node_bytes: cube_codec::RECORD_BYTES as u32,
+        cluster: info.cluster,
+        levels,
+        nodes: cells.len() as u64,
+        leaves,
+        input_vertices: info.input_vertices,
+        bounds_min: info.bounds_min,
+        bounds_max: info.bounds_max,
+        root_center: info.root_center,
+        root_radius: info.root_half_edge,
+        pages: Vec::new(),
+    })
 }

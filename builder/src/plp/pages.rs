@@ -6,14 +6,14 @@
 
 use std::collections::HashMap;
 
-use farfield_protocol::file::{AttributeFlags, FileHeader, HierarchyKind, PageEntry, place_pages};
-use farfield_protocol::page::{PageHeader, encode_page_with_payload};
+use farfield_protocol::file::{AttributeFlags, HierarchyKind};
 use farfield_protocol::plp_codec::{self, Cell, CellPage, NO_NEIGHBOUR, Skeleton, StoredTriangle};
 use glam::DVec3;
 
 use super::Triangles;
 use super::delaunay::{NONE, Tetrahedralization, morton};
 use crate::PagedFile;
+use crate::page_writer::{SceneFacts, SkeletonFirst};
 
 /// What the header records besides the tessellation.
 #[derive(Debug, Clone, Copy)]
@@ -111,30 +111,9 @@ pub fn lay_out(
         normals: Vec::new(),
     };
     let cell_count = skeleton.cells.len() as u64;
-    let mut pages = Vec::new();
-    let mut entries = Vec::new();
-    let mut push = |header: PageHeader, records: &[u8], payload: &[u8]| {
-        let (bytes, checksum) = encode_page_with_payload(&header, records, payload);
-        entries.push(PageEntry::of(&header, bytes.len(), checksum));
-        pages.push(bytes);
-    };
-    let mut root = (cell_count as u32).to_le_bytes().to_vec();
-    root.extend_from_slice(&0u32.to_le_bytes());
-    push(
-        PageHeader {
-            index: 0,
-            first_node: 0,
-            first_child: 1,
-            node_count: 1,
-            level_min: 0,
-            level_max: 0,
-        },
-        &root,
-        &skeleton.encode(root_center),
-    );
+    let mut pages = SkeletonFirst::new(cell_count, &skeleton.encode(root_center));
     // Cut the cells into pages.
     let mut stored = 0u64;
-    let mut index = 1u32;
     let mut start = 0usize;
     while start < order.len() {
         let mut page = PageBuilder::default();
@@ -150,45 +129,23 @@ pub fn lay_out(
         let cell_page = page.finish(tris);
         stored += cell_page.triangles.len() as u64;
         let (records, payload) = cell_page.encode();
-        push(
-            PageHeader {
-                index,
-                first_node: 1 + start as u64,
-                first_child: 1 + cell_count,
-                node_count: (end - start) as u32,
-                level_min: 1,
-                level_max: 1,
-            },
-            &records,
-            &payload,
-        );
-        index += 1;
+        pages.push_leaves((end - start) as u32, &records, &payload);
         start = end;
     }
-    place_pages(&mut entries);
-    let file = PagedFile {
-        header: FileHeader {
-            kind: HierarchyKind::Plp,
-            attributes: AttributeFlags {
-                color: true,
-                normals: false,
-                leaf_geometry: true,
-            },
-            node_bytes: plp_codec::NODE_BYTES as u32,
-            cluster: 0,
-            levels: 2,
-            nodes: 1 + cell_count,
-            leaves: cell_count,
-            input_vertices: info.input_vertices,
-            bounds_min: info.bounds_min,
-            bounds_max: info.bounds_max,
-            root_center,
-            root_radius: (hi - lo).length() * 0.5,
-            pages: entries,
+    let file = pages.finish(SceneFacts {
+        kind: HierarchyKind::Plp,
+        attributes: AttributeFlags {
+            color: true,
+            normals: false,
+            leaf_geometry: true,
         },
-        pages,
-        leaf_sources: Vec::new(),
-    };
+        node_bytes: plp_codec::NODE_BYTES as u32,
+        input_vertices: info.input_vertices,
+        bounds_min: info.bounds_min,
+        bounds_max: info.bounds_max,
+        root_center,
+        root_radius: (hi - lo).length() * 0.5,
+    });
     Laid {
         file,
         rho_max,

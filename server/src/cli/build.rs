@@ -7,15 +7,16 @@ use anyhow::Context;
 use indicatif::{ProgressBar, ProgressStyle};
 use serde_json::json;
 
-use farfield_builder::bsp::{BspOptions, build_bsp};
-use farfield_builder::cubes::{CubeOptions, build_cubes};
+use farfield_builder::bsp::BspOptions;
+use farfield_builder::cubes::CubeOptions;
 use farfield_builder::import::{Params, load_inputs};
-use farfield_builder::plp::{PlpOptions, build_plp};
-use farfield_builder::{BuildOptions, Progress, build_spheres_reporting};
+use farfield_builder::kinds::{BuildSettings, Built};
+use farfield_builder::plp::PlpOptions;
+use farfield_builder::{BuildOptions, Progress};
 use farfield_store::{check_target, write_atomic};
 use farfield_tools::meters::memory;
 
-use super::{BuildArgs, Kind, Report, counted};
+use super::{BuildArgs, Report, counted};
 
 /// Steps without a measure of their own (import, writing): a spinner and
 /// what is going on.
@@ -95,64 +96,34 @@ pub fn run(args: &BuildArgs) -> anyhow::Result<Report> {
         scene.instanced_vertex_count()
     ));
     let build_started = Instant::now();
-    let (file, stats, nodes, kind) = match args.kind {
-        Kind::Spheres => {
-            let options = BuildOptions {
-                page_bytes: args
-                    .page_bytes
-                    .unwrap_or(farfield_builder::DEFAULT_PAGE_BYTES),
-                ..BuildOptions::default()
-            };
-            let (file, stats) = build_spheres_reporting(scene, &options, &Bar(&progress))
-                .with_context(|| format!("building {}", args.inputs.join(" ")))?;
-            let nodes = stats.nodes;
-            (file, serde_json::to_value(stats)?, nodes, "spheres")
-        }
-        Kind::Cubes => {
-            let options = CubeOptions {
-                samples: args.face_samples,
-                cluster: args.cluster,
-                max_depth: args.max_depth,
-                composite: args.composite,
-                cube_cost: args.cube_cost,
-                page_bytes: args
-                    .page_bytes
-                    .unwrap_or(farfield_builder::cubes::DEFAULT_CUBE_PAGE_BYTES),
-            };
-            let (file, stats) = build_cubes(scene, &options)
-                .with_context(|| format!("building {}", args.inputs.join(" ")))?;
-            let nodes = stats.nodes;
-            (file, serde_json::to_value(stats)?, nodes, "cubes")
-        }
-        Kind::Plp => {
-            let options = PlpOptions {
-                leaf_fraction: args.leaf_fraction,
-                seed: args.seed,
-                page_bytes: args
-                    .page_bytes
-                    .unwrap_or(farfield_builder::plp::DEFAULT_PLP_PAGE_BYTES),
-                ..PlpOptions::default()
-            };
-            let (file, stats) = build_plp(&scene, &options)
-                .with_context(|| format!("building {}", args.inputs.join(" ")))?;
-            drop(scene);
-            let nodes = file.header.nodes;
-            (file, serde_json::to_value(stats)?, nodes, "plp")
-        }
-        Kind::Bsp => {
-            let options = BspOptions {
-                directions: args.bsp_directions,
-                inflation: args.inflation,
-                leaf_triangles: args.leaf_triangles,
-                ..BspOptions::default()
-            };
-            let (file, stats) = build_bsp(&scene, &options)
-                .with_context(|| format!("building {}", args.inputs.join(" ")))?;
-            drop(scene);
-            let nodes = file.header.nodes;
-            (file, serde_json::to_value(stats)?, nodes, "bsp")
-        }
+    let builder = farfield_builder::kinds::builder_named(&args.kind)
+        .with_context(|| format!("unknown hierarchy kind {:?}", args.kind))?;
+    let settings = BuildSettings {
+        page_bytes: args.page_bytes,
+        spheres: BuildOptions::default(),
+        cubes: CubeOptions {
+            samples: args.face_samples,
+            cluster: args.cluster,
+            max_depth: args.max_depth,
+            composite: args.composite,
+            cube_cost: args.cube_cost,
+            ..CubeOptions::default()
+        },
+        plp: PlpOptions {
+            leaf_fraction: args.leaf_fraction,
+            seed: args.seed,
+            ..PlpOptions::default()
+        },
+        bsp: BspOptions {
+            directions: args.bsp_directions,
+            inflation: args.inflation,
+            leaf_triangles: args.leaf_triangles,
+            ..BspOptions::default()
+        },
     };
+    let Built { file, stats, nodes } = (builder.build)(scene, &settings, &Bar(&progress))
+        .with_context(|| format!("building {}", args.inputs.join(" ")))?;
+    let kind = builder.name();
     let seconds_build = build_started.elapsed().as_secs_f64();
     progress.set_style(spinner_style());
     progress.set_message(format!("writing {}", args.out.display()));

@@ -172,12 +172,9 @@ pub struct BuildArgs {
     /// for cubes, 32 KiB for plp).
     #[arg(long)]
     pub page_bytes: Option<usize>,
-    /// Which hierarchy: QSplat's bounding spheres, the color-cube octree
-    /// of Chamberlain et al. with the geometry at its leaves, PLP's
-    /// Delaunay tessellation (Klosowski and Silva) for budgeted rendering,
-    /// or the BSP by gaps of Shade et al.'s hierarchical image caching.
-    #[arg(long, value_enum, default_value_t = Kind::Spheres)]
-    pub kind: Kind,
+    /// Which hierarchy (each kind's builder says what it is in `--help`).
+    #[arg(long, default_value = "spheres", value_parser = kind_names())]
+    pub kind: String,
     /// Cubes: samples per cube-face edge (16 = 4 x 4 pixels of 4 x 4 samples).
     #[arg(long, default_value_t = 16)]
     pub face_samples: usize,
@@ -219,13 +216,13 @@ pub struct BuildArgs {
     pub json: bool,
 }
 
-/// The hierarchy kinds `build` makes.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
-pub enum Kind {
-    Spheres,
-    Cubes,
-    Plp,
-    Bsp,
+/// The kinds `build` makes: the builder registry's names.
+fn kind_names() -> clap::builder::PossibleValuesParser {
+    farfield_builder::kinds::BUILDERS
+        .iter()
+        .map(|b| clap::builder::PossibleValue::new(b.name()).help(b.about))
+        .collect::<Vec<_>>()
+        .into()
 }
 
 #[derive(Debug, clap::Args)]

@@ -1,0 +1,156 @@
+//! The one page writer. Every builder decides what goes in its pages (the
+//! records and payload of each) and hands them here; this encodes each page
+//! with its checksum, keeps the directory entry that describes it, and at
+//! the end places the pages after the header and makes the [`PagedFile`].
+//!
+//! Two shapes of file exist (`farfield_protocol::file::PageLayout`): the
+//! breadth-first pages of spheres and color cubes, which their builders cut
+//! themselves through [`PageWriter`], and the two-level "skeleton first"
+//! shape PLP and image caching share, written by [`SkeletonFirst`].
+
+use farfield_protocol::file::{AttributeFlags, FileHeader, HierarchyKind, PageEntry, place_pages};
+use farfield_protocol::page::{PageHeader, encode_page_with_payload};
+use glam::DVec3;
+
+use crate::PagedFile;
+
+/// Pages in the order of their indices, with their directory entries.
+#[derive(Debug, Default)]
+pub struct PageWriter {
+    entries: Vec<PageEntry>,
+    pages: Vec<Vec<u8>>,
+}
+
+impl PageWriter {
+    /// Appends a page. `header.index` must be the number of pages so far.
+    pub fn push(&mut self, header: &PageHeader, records: &[u8], payload: &[u8]) {
+        debug_assert_eq!(
+            header.index as usize,
+            self.pages.len(),
+            "pages out of order"
+        );
+        let (bytes, checksum) = encode_page_with_payload(header, records, payload);
+        self.entries
+            .push(PageEntry::of(header, bytes.len(), checksum));
+        self.pages.push(bytes);
+    }
+
+    /// Pages written so far.
+    pub fn len(&self) -> usize {
+        self.pages.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.pages.is_empty()
+    }
+
+    /// Page `index`'s bytes as written (header, records, payload, checksum).
+    pub fn page(&self, index: usize) -> Option<&[u8]> {
+        self.pages.get(index).map(Vec::as_slice)
+    }
+
+    /// The file: `header` (whose directory is ignored) with the directory
+    /// of the pages written, placed right after the header.
+    pub fn finish(self, header: FileHeader) -> PagedFile {
+        let mut entries = self.entries;
+        // Offsets are known once the page count, and so the header's
+        // length, is.
+        place_pages(&mut entries);
+        PagedFile {
+            header: FileHeader {
+                pages: entries,
+                ..header
+            },
+            pages: self.pages,
+            leaf_sources: Vec::new(),
+        }
+    }
+}
+
+/// What a two-level file's header says besides its shape.
+#[derive(Debug, Clone, Copy)]
+pub struct SceneFacts {
+    pub kind: HierarchyKind,
+    pub attributes: AttributeFlags,
+    pub node_bytes: u32,
+    pub input_vertices: u64,
+    pub bounds_min: DVec3,
+    pub bounds_max: DVec3,
+    /// What the skeleton's positions are relative to.
+    pub root_center: DVec3,
+    pub root_radius: f64,
+}
+
+/// The "skeleton first" shape (PLP's tessellation, image caching's BSP): a
+/// root alone in page 0 whose payload is the skeleton, enough for a client
+/// to order the whole scene from one read, and whose children are every
+/// leaf; then the leaves, in pages of one or more, in the order the builder
+/// chose (a page is a patch of space).
+#[derive(Debug)]
+pub struct SkeletonFirst {
+    writer: PageWriter,
+    leaves: u64,
+    next_node: u64,
+}
+
+impl SkeletonFirst {
+    /// Page 0: the root, with `leaves` children, carrying `skeleton`.
+    pub fn new(leaves: u64, skeleton: &[u8]) -> Self {
+        let mut writer = PageWriter::default();
+        // The root's record: its child count, then a word kept zero.
+        let mut root = (leaves as u32).to_le_bytes().to_vec();
+        root.extend_from_slice(&0u32.to_le_bytes());
+        writer.push(
+            &PageHeader {
+                index: 0,
+                first_node: 0,
+                first_child: 1,
+                node_count: 1,
+                level_min: 0,
+                level_max: 0,
+            },
+            &root,
+            skeleton,
+        );
+        Self {
+            writer,
+            leaves,
+            next_node: 1,
+        }
+    }
+
+    /// Appends a page of the next `count` leaves.
+    pub fn push_leaves(&mut self, count: u32, records: &[u8], payload: &[u8]) {
+        let header = PageHeader {
+            index: self.writer.len() as u32,
+            first_node: self.next_node,
+            // Leaves have no children: their first child is past the last node.
+            first_child: 1 + self.leaves,
+            node_count: count,
+            level_min: 1,
+            level_max: 1,
+        };
+        self.writer.push(&header, records, payload);
+        self.next_node += u64::from(count);
+    }
+
+    /// The file.
+    pub fn finish(self, facts: SceneFacts) -> PagedFile {
+        debug_assert_eq!(self.next_node, 1 + self.leaves, "a leaf without a page");
+        self.writer.finish(FileHeader {
+            kind: facts.kind,
+            attributes: facts.attributes,
+            node_bytes: facts.node_bytes,
+            cluster: 0,
+            levels: 2,
+            nodes: 1 + self.leaves,
+            leaves: self.leaves,
+            input_vertices: facts.input_vertices,
+            bounds_min: facts.bounds_min,
+            bounds_max: facts.bounds_max,
+            root_center: facts.root_center,
+            root_radius: facts.root_radius,
+            pages: Vec::new(),
+        })
+    }
+}
