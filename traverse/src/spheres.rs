@@ -94,8 +94,8 @@ pub fn traverse_into(h: &Hierarchy, camera: &Camera, options: &TraverseOptions, 
     cut.frustum_culled = 0;
     cut.backface_culled = 0;
     cut.touched_pages.clear();
-    // Another kind's pages keep no sphere records (a BSP file has no
-    // traversal yet and is given this one): nothing to walk.
+    // Another kind's pages keep no sphere records (a caller that picked
+    // this traversal by name for another kind's file): nothing to walk.
     if h.header.kind != farfield_protocol::file::HierarchyKind::Spheres {
         return;
     }

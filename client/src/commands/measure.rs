@@ -1,5 +1,5 @@
 //! The measuring subcommands, whose work is in `farfield-tools`:
-//! `bench`, `report`, `bench-cubes` and `bench-stream`.
+//! `bench`, `report`, `bench-cubes`, `bench-plp`, `bench-stream` and `loadtest`.
 
 use std::path::{Path, PathBuf};
 use std::time::Duration;

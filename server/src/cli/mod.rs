@@ -415,7 +415,7 @@ pub fn run(cli: Cli) -> anyhow::Result<Report> {
 }
 
 /// `n` and a noun in the right number: "1 level", "11 levels".
-pub(crate) fn counted(n: impl Into<u64>, one: &str, many: &str) -> String {
+pub fn counted(n: impl Into<u64>, one: &str, many: &str) -> String {
     let n = n.into();
     format!("{n} {}", if n == 1 { one } else { many })
 }
@@ -428,16 +428,4 @@ fn measured(m: farfield_tools::Measured, as_json: bool) -> anyhow::Result<Report
         exit_code: 0,
         as_json,
     })
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn counts_say_their_noun_in_the_right_number() {
-        assert_eq!(counted(1u32, "level", "levels"), "1 level");
-        assert_eq!(counted(0u32, "leaf", "leaves"), "0 leaves");
-        assert_eq!(counted(11u64, "page", "pages"), "11 pages");
-    }
 }
