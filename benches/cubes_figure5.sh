@@ -8,7 +8,7 @@ cd "$(dirname "$0")/.."
 max=${1:-256}
 size=${2:-256x256}
 out=$(mktemp -d)
-cargo build --release -q -p farfield-server -p farfield-client
+cargo build --release -q -p farfield-server -p farfield-cli
 server=target/release/farfield-server
 client=target/release/farfield
 echo "trees triangles geometry_ms hierarchy_ms speedup faces hierarchy_triangles psnr_db build_s file_bytes"

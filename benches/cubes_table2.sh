@@ -7,7 +7,7 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 data=${1:-${FARFIELD_DATA:-../shared/data}}
 out=$(mktemp -d)
-cargo build --release -q -p farfield-server -p farfield-client
+cargo build --release -q -p farfield-server -p farfield-cli
 server=target/release/farfield-server
 client=target/release/farfield
 for input in gen:tree "$data/2XHE.pdb" "$data/stanford-bunny.obj"; do

@@ -26,7 +26,7 @@ command -v s3s-fs >/dev/null || [ -x "$HOME/.cargo/bin/s3s-fs" ] ||
   { echo "s3s-fs not found (cargo install s3s-fs --version 0.14.1 --features binary)" >&2; exit 1; }
 s3s=$(command -v s3s-fs || echo "$HOME/.cargo/bin/s3s-fs")
 [ -x $bin/farfield ] && [ -x $bin/farfield-server ] ||
-  cargo build --release -p farfield-client -p farfield-server
+  cargo build --release -p farfield-cli -p farfield-server
 mkdir -p "$out/scenes" "$out/store/scenes" "$out/nginx/tmp"
 scene=$out/scenes/island.ff
 [ -f "$scene" ] || $bin/farfield-server build gen:island --param trees=$trees --out "$scene"

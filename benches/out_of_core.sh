@@ -17,7 +17,7 @@ clients=${CLIENTS:-64}; seconds=${SECONDS_RUN:-60}
 cache_mib=${CACHE_MIB:-64}; limit_mib=${LIMIT_MIB:-192}; trees=${TREES:-1000}
 bin=target/release
 [ -x $bin/farfield ] && [ -x $bin/farfield-server ] ||
-  cargo build --release -p farfield-client -p farfield-server
+  cargo build --release -p farfield-cli -p farfield-server
 mkdir -p "$out/scenes"
 scene=$out/scenes/island.ff
 [ -f "$scene" ] || $bin/farfield-server build gen:island --param trees=$trees --out "$scene"

@@ -17,7 +17,7 @@ seconds=${SECONDS_RUN:-30}; trees=${TREES:-32}; port=${PORT:-18080}
 bin=$(pwd)/target/release
 command -v nginx >/dev/null || { echo "nginx not found (apt-get install nginx)" >&2; exit 1; }
 [ -x $bin/farfield ] && [ -x $bin/farfield-server ] ||
-  cargo build --release -p farfield-client -p farfield-server
+  cargo build --release -p farfield-cli -p farfield-server
 mkdir -p "$out/scenes" "$out/nginx"
 scene=$out/scenes/island.ff
 [ -f "$scene" ] || $bin/farfield-server build gen:island --param trees=$trees --out "$scene"

@@ -14,7 +14,7 @@ out=${1:-runs/wan}
 seconds=${SECONDS_RUN:-20}; trees=${TREES:-32}
 bin=$(pwd)/target/release
 [ -x $bin/farfield ] && [ -x $bin/farfield-server ] ||
-  cargo build --release -p farfield-client -p farfield-server
+  cargo build --release -p farfield-cli -p farfield-server
 mkdir -p "$out/scenes"
 scene=$out/scenes/island.ff
 [ -f "$scene" ] || $bin/farfield-server build gen:island --param trees=$trees --out "$scene"

@@ -45,10 +45,10 @@ fn main() -> anyhow::Result<()> {
     // The window's half: `farfield view` in-process, in a child.
     if let Ok(args) = std::env::var(CHILD_ENV) {
         use clap::Parser;
-        let cli = farfield_client::cli::Cli::try_parse_from(
+        let cli = farfield_cli::cli::Cli::try_parse_from(
             std::iter::once("farfield").chain(args.split('\t')),
         )?;
-        return farfield_client::cli::run(cli);
+        return farfield_cli::cli::run(cli);
     }
     if std::env::args().any(|a| a == "--list") {
         return Ok(());

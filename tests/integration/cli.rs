@@ -1,7 +1,7 @@
 //! The two command lines' own helpers (their crates build no test binary
 //! of their own: each would link the whole stack again for a few tests).
 
-use farfield_client::commands::path::path_json;
+use farfield_cli::commands::path::path_json;
 use farfield_server::cli::counted;
 use farfield_view::path::{CameraPath, Keyframe};
 

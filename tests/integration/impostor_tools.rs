@@ -6,7 +6,7 @@
 use std::time::Duration;
 
 use clap::Parser;
-use farfield_client::cli::{Cli, run};
+use farfield_cli::cli::{Cli, run};
 use farfield_render::headless_or_skip;
 use farfield_store::write_atomic;
 use farfield_tests::scratch;

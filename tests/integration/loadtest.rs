@@ -8,7 +8,7 @@ use std::path::Path;
 use std::time::Duration;
 
 use clap::Parser;
-use farfield_client::cli::{Cli, run};
+use farfield_cli::cli::{Cli, run};
 use farfield_tests::scratch;
 use farfield_tools::bench::rows;
 use farfield_tools::loadtest::client::ClientRow;

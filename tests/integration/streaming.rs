@@ -458,7 +458,7 @@ fn a_page_corrupt_on_the_server_is_given_up_and_the_rest_refines() {
 
 #[test]
 fn the_demo_writes_frames_a_csv_and_a_summary() {
-    use farfield_client::commands::demo::{DemoJob, run as demo};
+    use farfield_cli::commands::demo::{DemoJob, run as demo};
     if headless_or_skip(8, 8).unwrap().is_none() {
         return;
     }

@@ -10,7 +10,7 @@ use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
 
 use clap::Parser;
-use farfield_client::cli::{Cli, run};
+use farfield_cli::cli::{Cli, run};
 use farfield_image::files::compare_files;
 use farfield_render::headless_or_skip;
 use farfield_serve::tls::TlsFiles;

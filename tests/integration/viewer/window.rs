@@ -226,9 +226,9 @@ fn view_child() {
         return;
     };
     use clap::Parser;
-    let cli = farfield_client::cli::Cli::try_parse_from(
+    let cli = farfield_cli::cli::Cli::try_parse_from(
         std::iter::once("farfield").chain(args.split('\t')),
     )
     .expect("arguments");
-    farfield_client::cli::run(cli).expect("farfield view");
+    farfield_cli::cli::run(cli).expect("farfield view");
 }

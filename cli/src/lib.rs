@@ -1,4 +1,4 @@
-//! farfield-client: the `farfield` command line, as a library so tests run
+//! farfield-cli: the `farfield` command line, as a library so tests run
 //! the same code in-process (`main.rs` only parses, runs and exits).
 //!
 //! - [`cli`]: the arguments and the dispatch.

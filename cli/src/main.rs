@@ -1,10 +1,10 @@
 //! `farfield`: the client command line. Parsing and dispatch only; the
-//! work is in `farfield_client::commands` and the crates below it.
+//! work is in `farfield_cli::commands` and the crates below it.
 
 use std::process::ExitCode;
 
 use clap::Parser;
-use farfield_client::cli::{Cli, run};
+use farfield_cli::cli::{Cli, run};
 
 /// The demo builds its scene in-process: large build arrays on huge pages,
 /// as in `farfield-server` (see [`farfield_builder::allocator`]).
