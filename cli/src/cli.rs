@@ -4,8 +4,8 @@
 use std::path::PathBuf;
 
 use clap::{Parser, Subcommand, ValueEnum};
-use farfield_view::camera_spec::{CameraSpec, parse_camera, parse_orbit, parse_size};
-use farfield_view::render_job::Source;
+use farfield_client::camera_spec::{CameraSpec, parse_camera, parse_orbit, parse_size};
+use farfield_client::render_job::Source;
 
 use crate::commands;
 
@@ -585,7 +585,7 @@ fn view_job(args: ViewArgs) -> anyhow::Result<commands::view::ViewJob> {
         screenshot_when_refined: args.screenshot_when_refined,
         demo: args
             .session
-            .map(|session| farfield_view::render_job::DemoRole {
+            .map(|session| farfield_client::render_job::DemoRole {
                 session,
                 present: args.present,
             }),

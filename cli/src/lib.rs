@@ -6,7 +6,7 @@
 //!   `compare`, `demo` (build, embedded server, flight, sweep), and the
 //!   measuring subcommands over `farfield-tools`.
 //!
-//! The client core it drives is `farfield-view` (resident pages, frame
+//! The client core it drives is `farfield-client` (resident pages, frame
 //! loop), `farfield-net` (the session), `farfield-traverse` and
 //! `farfield-render`.
 

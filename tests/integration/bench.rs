@@ -10,7 +10,7 @@ use farfield_store::write_atomic;
 use farfield_tests::scratch;
 use farfield_tools::bench::rows::{ProgressRow, Row};
 use farfield_tools::bench::{BenchJob, plots, report, rows, run};
-use farfield_view::render_job::Source;
+use farfield_client::render_job::Source;
 
 use crate::build;
 

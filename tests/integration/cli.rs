@@ -3,7 +3,7 @@
 
 use farfield_cli::commands::path::path_json;
 use farfield_server::cli::counted;
-use farfield_view::path::{CameraPath, Keyframe};
+use farfield_client::path::{CameraPath, Keyframe};
 
 #[test]
 fn counts_say_their_noun_in_the_right_number() {

@@ -20,9 +20,9 @@ use farfield_store::write_atomic;
 use farfield_tests::{scratch, shared_data};
 use farfield_tools::reference::Reference;
 use farfield_traverse::cubes::{CubeOptions, traverse_cubes};
-use farfield_view::camera_spec::CameraSpec;
-use farfield_view::frame_loop::Until;
-use farfield_view::render_job::{RenderJob, Source, run};
+use farfield_client::camera_spec::CameraSpec;
+use farfield_client::frame_loop::Until;
+use farfield_client::render_job::{RenderJob, Source, run};
 use glam::{DAffine3, DVec3, Vec3};
 
 use crate::resident;
@@ -55,7 +55,7 @@ fn tree_and_bunny(triangles: u32) -> Vec<(&'static str, Scene)> {
 }
 
 fn orbit(h: &Hierarchy, azimuth: f64, distance: f64) -> Camera {
-    let (center, radius) = farfield_view::camera_spec::scene_sphere(&h.header);
+    let (center, radius) = farfield_client::camera_spec::scene_sphere(&h.header);
     Camera::orbit(center, radius, azimuth, 10.0, distance, SIZE.0, SIZE.1)
 }
 
@@ -580,8 +580,8 @@ fn corrupt_cube_pages_are_refused() {
 fn the_first_streamed_image_is_made_of_cubes() {
     use farfield_render::SplatStyle;
     use farfield_traverse::DrawList;
-    use farfield_view::frame_loop::{LastCut, draw_frame};
-    use farfield_view::viewer::Viewer;
+    use farfield_client::frame_loop::{LastCut, draw_frame};
+    use farfield_client::viewer::Viewer;
     let Some(mut renderer) = headless_or_skip(SIZE.0, SIZE.1).unwrap() else {
         return;
     };
@@ -669,9 +669,9 @@ fn clustered_cubes_draw_sub_cubes_and_keep_the_floor() {
 #[test]
 fn eps_adapts_to_the_frame_budget_in_flight() {
     use farfield_render::SplatStyle;
-    use farfield_view::flythrough::{FlyJob, fly};
-    use farfield_view::path::{CameraPath, Keyframe, OrbitKey};
-    use farfield_view::viewer::Viewer;
+    use farfield_client::flythrough::{FlyJob, fly};
+    use farfield_client::path::{CameraPath, Keyframe, OrbitKey};
+    use farfield_client::viewer::Viewer;
     let Some(mut renderer) = headless_or_skip(SIZE.0, SIZE.1).unwrap() else {
         return;
     };

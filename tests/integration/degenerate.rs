@@ -17,9 +17,9 @@ use farfield_net::SessionOptions;
 use farfield_render::{Coverage, Kernel, headless_or_skip};
 use farfield_store::write_atomic;
 use farfield_tests::{scratch, shared_data};
-use farfield_view::camera_spec::CameraSpec;
-use farfield_view::frame_loop::Until;
-use farfield_view::render_job::{RenderJob, Source, run};
+use farfield_client::camera_spec::CameraSpec;
+use farfield_client::frame_loop::Until;
+use farfield_client::render_job::{RenderJob, Source, run};
 use glam::DVec3;
 
 const SIZE: (u32, u32) = (160, 160);

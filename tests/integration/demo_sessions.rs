@@ -11,10 +11,10 @@ use farfield_protocol::camera::Camera;
 use farfield_render::headless_or_skip;
 use farfield_serve::limits::Limits;
 use farfield_serve::{RunningServer, ServerConfig};
-use farfield_view::camera_spec::CameraSpec;
-use farfield_view::demo_link::DemoLink;
-use farfield_view::frame_loop::{LastCut, traverse_frame};
-use farfield_view::viewer::Viewer;
+use farfield_client::camera_spec::CameraSpec;
+use farfield_client::demo_link::DemoLink;
+use farfield_client::frame_loop::{LastCut, traverse_frame};
+use farfield_client::viewer::Viewer;
 
 use crate::streaming::{SIZE, runtime, scenes};
 

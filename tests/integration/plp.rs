@@ -543,9 +543,9 @@ fn the_whole_budget_gives_the_full_render_and_coverage_one() {
 #[test]
 fn streamed_plp_at_a_budget_equals_the_file_and_fetches_less() {
     use farfield_render::headless_or_skip;
-    use farfield_view::budget::BudgetSpec;
-    use farfield_view::camera_spec::CameraSpec;
-    use farfield_view::render_job::{RenderJob, Source, run};
+    use farfield_client::budget::BudgetSpec;
+    use farfield_client::camera_spec::CameraSpec;
+    use farfield_client::render_job::{RenderJob, Source, run};
 
     let Some(mut renderer) = headless_or_skip(160, 120).expect("adapter") else {
         return;
@@ -567,7 +567,7 @@ fn streamed_plp_at_a_budget_equals_the_file_and_fetches_less() {
         width: 160,
         height: 120,
         out: None,
-        until: farfield_view::frame_loop::Until::Refined,
+        until: farfield_client::frame_loop::Until::Refined,
         threshold_px: 1.0,
         kernel: Default::default(),
         coverage: Default::default(),
@@ -622,7 +622,7 @@ fn streamed_plp_at_a_budget_equals_the_file_and_fetches_less() {
 #[test]
 fn bench_plp_reports_coverage_wrong_pixels_and_the_papers_row() {
     use farfield_tools::bench_plp::{PaperRow, PlpBenchJob, format_table, frames_csv, run};
-    use farfield_view::path::{CameraPath, Keyframe};
+    use farfield_client::path::{CameraPath, Keyframe};
 
     let Some(mut renderer) = farfield_render::headless_or_skip(160, 120).expect("adapter") else {
         return;

@@ -18,9 +18,9 @@ use farfield_net::SessionOptions;
 use farfield_serve::{ServerConfig, start};
 use farfield_store::write_atomic;
 use farfield_tests::{scratch, shared_data};
-use farfield_view::camera_spec::CameraSpec;
-use farfield_view::frame_loop::{LastCut, traverse_frame};
-use farfield_view::viewer::Viewer;
+use farfield_client::camera_spec::CameraSpec;
+use farfield_client::frame_loop::{LastCut, traverse_frame};
+use farfield_client::viewer::Viewer;
 
 use crate::streaming::runtime;
 

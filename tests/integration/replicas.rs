@@ -19,8 +19,8 @@ use std::time::{Duration, Instant};
 
 use farfield_render::{Renderer, headless_or_skip};
 use farfield_tests::scratch;
-use farfield_view::camera_spec::CameraSpec;
-use farfield_view::render_job::{Source, run};
+use farfield_client::camera_spec::CameraSpec;
+use farfield_client::render_job::{Source, run};
 
 use crate::s3::S3Store;
 use crate::serve::support::ChildServer;

@@ -14,10 +14,10 @@ use farfield_serve::{RunningServer, ServerConfig, start};
 use farfield_store::write_atomic;
 use farfield_tests::{scratch, shared_data};
 use farfield_traverse::DrawList;
-use farfield_view::camera_spec::CameraSpec;
-use farfield_view::frame_loop::{LastCut, Settle, Until, draw_frame};
-use farfield_view::render_job::{RenderJob, Rendered, Source, run};
-use farfield_view::viewer::Viewer;
+use farfield_client::camera_spec::CameraSpec;
+use farfield_client::frame_loop::{LastCut, Settle, Until, draw_frame};
+use farfield_client::render_job::{RenderJob, Rendered, Source, run};
+use farfield_client::viewer::Viewer;
 
 use crate::build;
 
@@ -480,7 +480,7 @@ fn the_demo_writes_frames_a_csv_and_a_summary() {
     let rows = csv.lines().count() - 1;
     assert_eq!(rows, first.frames);
     assert!(rows >= 5, "{rows} frames");
-    assert!(csv.starts_with(farfield_view::flythrough::CSV_HEADER));
+    assert!(csv.starts_with(farfield_client::flythrough::CSV_HEADER));
     let pngs = std::fs::read_dir(out.join("frames")).unwrap().count();
     assert_eq!(pngs, rows);
     assert!(

@@ -19,7 +19,7 @@ use crate::reference::Reference;
 use farfield_image::compare;
 use farfield_render::{Coverage, Renderer};
 use farfield_render::{CubeFrame, draw_cut};
-use farfield_view::camera_spec::scene_sphere;
+use farfield_client::camera_spec::scene_sphere;
 
 /// What to measure.
 #[derive(Debug, Clone)]
@@ -104,7 +104,7 @@ pub struct CubeBenchReport {
 
 /// Runs the table on an already started renderer.
 pub fn run(job: &CubeBenchJob, renderer: &mut Renderer) -> anyhow::Result<CubeBenchReport> {
-    let h = farfield_view::viewer::load_file(&job.file)?;
+    let h = farfield_client::viewer::load_file(&job.file)?;
     anyhow::ensure!(
         h.header.kind == HierarchyKind::Cubes,
         "{} is a {} hierarchy; bench-cubes needs one built with --kind cubes",

@@ -18,7 +18,7 @@ use farfield_protocol::hierarchy::Hierarchy;
 use farfield_render::{Coverage, GpuVertex, Renderer, pack_plp, visible_ids};
 use farfield_traverse::Budget;
 use farfield_traverse::plp::{Order, PlpCut, PlpOptions, PlpState, Solidity, traverse_plp_into};
-use farfield_view::path::CameraPath;
+use farfield_client::path::CameraPath;
 use serde::Serialize;
 
 use crate::bench::visible::common_count;
@@ -145,7 +145,7 @@ pub struct PlpBenchReport {
 
 /// Runs the bench on an already started renderer.
 pub fn run(job: &PlpBenchJob, renderer: &mut Renderer) -> anyhow::Result<PlpBenchReport> {
-    let h = farfield_view::viewer::load_file(&job.file)?;
+    let h = farfield_client::viewer::load_file(&job.file)?;
     anyhow::ensure!(
         h.header.kind == HierarchyKind::Plp,
         "{} is a {} hierarchy; bench-plp needs one built with --kind plp",

@@ -25,10 +25,10 @@ use farfield_net::websocket::drive;
 use farfield_net::{Session, SessionEvent, SessionOptions, stream_url};
 use farfield_protocol::messages::PageWish;
 use farfield_render::{Kernel, Renderer, SplatStyle};
-use farfield_view::camera_spec::CameraSpec;
-use farfield_view::frame_loop::{LastCut, Until, draw_frame};
-use farfield_view::render_job::{RenderJob, Source, run};
-use farfield_view::viewer::Viewer;
+use farfield_client::camera_spec::CameraSpec;
+use farfield_client::frame_loop::{LastCut, Until, draw_frame};
+use farfield_client::render_job::{RenderJob, Source, run};
+use farfield_client::viewer::Viewer;
 use serde::Serialize;
 use tokio::io::{AsyncReadExt, AsyncWriteExt};
 

@@ -1,7 +1,7 @@
 //! A frame's budget (PLP, section 3): how many triangles it may draw, as a
 //! count or as a share of the scene. A budget in milliseconds is turned
 //! into a count each frame by whoever measures the draw rate
-//! (`farfield_view::budget`), since a traversal neither draws nor times.
+//! (`farfield_client::budget`), since a traversal neither draws nor times.
 
 use std::fmt;
 use std::str::FromStr;

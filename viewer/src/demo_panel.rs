@@ -4,9 +4,9 @@
 //! presenter shows its own).
 
 use farfield_protocol::camera::Camera;
-use farfield_view::demo_link::DemoLink;
-use farfield_view::render_job::DemoRole;
-use farfield_view::viewer::Viewer;
+use farfield_client::demo_link::DemoLink;
+use farfield_client::render_job::DemoRole;
+use farfield_client::viewer::Viewer;
 
 use crate::rig::{CameraRig, Orbit};
 

@@ -2,7 +2,7 @@
 //! and a browser tab.
 //!
 //! An eframe app ([`app::ViewerApp`]) over the client core
-//! (`farfield-view`'s `Viewer` and frame loop): the scene drawn into a
+//! (`farfield-client`'s `Viewer` and frame loop): the scene drawn into a
 //! texture on egui's wgpu device, a panel beside it, camera controls that
 //! people expect from Potree or a CAD viewer. The front ends are thin: the
 //! `farfield view` command opens a window; `farfield-web` starts the same

@@ -4,7 +4,7 @@
 //! Numbers are written in Rust's shortest exact form, so a link read back
 //! is the very camera that wrote it.
 
-use farfield_view::camera_spec::{CameraSpec, parse_camera};
+use farfield_client::camera_spec::{CameraSpec, parse_camera};
 
 /// The fragment (without `#`) for a camera at `eye` looking at `target`.
 pub fn camera_fragment(spec: &CameraSpec) -> Option<String> {

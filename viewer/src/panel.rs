@@ -65,13 +65,13 @@ impl Settings {
     /// Sets the frame loop's PLP budget: the slider's share, or the frame
     /// time when one is set. The measured draw rate is kept while the
     /// frame time stays the same (a fresh one would start from a guess).
-    pub fn apply_plp_budget(&self, cut: &mut farfield_view::frame_loop::LastCut) {
+    pub fn apply_plp_budget(&self, cut: &mut farfield_client::frame_loop::LastCut) {
         cut.budget = self.plp_budget();
         let ms = self.plp_budget_ms;
         cut.time_budget = if ms.is_finite() && ms > 0.0 {
             match cut.time_budget {
                 Some(kept) if kept.target_ms == ms => Some(kept),
-                _ => Some(farfield_view::budget::TimeBudget::new(ms)),
+                _ => Some(farfield_client::budget::TimeBudget::new(ms)),
             }
         } else {
             None
@@ -81,7 +81,7 @@ impl Settings {
     /// Sets the frame loop's image-caching ε: the kinds whose threshold is
     /// an error bound they hold (image caching) draw at it on every frame;
     /// the others keep refining. A bad value falls back to the default.
-    pub fn apply_epsilon(&self, cut: &mut farfield_view::frame_loop::LastCut) {
+    pub fn apply_epsilon(&self, cut: &mut farfield_client::frame_loop::LastCut) {
         let eps = self.epsilon_px;
         cut.final_threshold = Some(if eps.is_finite() && eps >= 0.0 {
             eps
@@ -214,7 +214,7 @@ pub fn show(
 mod tests {
     use super::*;
     use farfield_traverse::Budget;
-    use farfield_view::frame_loop::LastCut;
+    use farfield_client::frame_loop::LastCut;
 
     #[test]
     fn the_epsilon_control_sets_the_bound_image_caching_holds() {

@@ -3,9 +3,9 @@
 //!
 //! Moving, the projected-size threshold follows the frame time (QSplat
 //! 2.1, the same feedback as a flythrough's,
-//! [`farfield_view::flythrough::follow_frame_time`]). At rest it halves
+//! [`farfield_client::flythrough::follow_frame_time`]). At rest it halves
 //! each frame down to the final threshold with the steps `farfield render`
-//! takes ([`farfield_view::frame_loop::Settle`], `finer_threshold`), then
+//! takes ([`farfield_client::frame_loop::Settle`], `finer_threshold`), then
 //! waits for pages. A node
 //! budget (Potree's point budget) puts a floor under the threshold for as
 //! long as the camera rests: a cut that would draw more nodes than the
@@ -18,8 +18,8 @@
 //! lower the plain ratio, so the highest value so far is kept), and is 1
 //! exactly when the view is refined, never before.
 
-use farfield_view::flythrough::follow_frame_time;
-use farfield_view::frame_loop::{coarse_threshold, finer_threshold};
+use farfield_client::flythrough::follow_frame_time;
+use farfield_client::frame_loop::{coarse_threshold, finer_threshold};
 
 /// Largest share shown before the view is refined.
 const ALMOST: f64 = 0.999;

@@ -13,7 +13,7 @@ use farfield_protocol::camera::Camera;
 use farfield_protocol::file::FileHeader;
 use glam::DVec3;
 
-use farfield_view::camera_spec::{CameraSpec, scene_sphere};
+use farfield_client::camera_spec::{CameraSpec, scene_sphere};
 
 /// Steepest look up or down, so "up" stays defined (radians, 89 degrees).
 const MAX_PITCH: f64 = 89.0 * std::f64::consts::PI / 180.0;

@@ -1,7 +1,7 @@
 //! What the viewer reports each frame: the panel's numbers, and what a
 //! browser page hands to scripts (tests read `refined` and `progress`).
 
-use farfield_view::camera_spec::CameraSpec;
+use farfield_client::camera_spec::CameraSpec;
 use serde::Serialize;
 
 /// The connection as the panel names it.

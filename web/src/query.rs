@@ -74,7 +74,7 @@ pub fn parse(search: &str) -> Result<Query, String> {
             Some("present") => true,
             Some(other) => return Err(format!("role={other} is not follow or present")),
         };
-        options.demo = Some(farfield_view::render_job::DemoRole { session, present });
+        options.demo = Some(farfield_client::render_job::DemoRole { session, present });
     }
     let backend = match params.get("backend").as_deref() {
         None | Some("auto") | Some("webgpu") => Backend::Auto,

@@ -18,9 +18,9 @@ use farfield_store::{SceneFile, write_atomic};
 
 use farfield_net::SessionOptions;
 use farfield_render::{Renderer, SplatStyle};
-use farfield_view::flythrough::{FlyJob, fly, write_csv};
-use farfield_view::path::CameraPath;
-use farfield_view::viewer::Viewer;
+use farfield_client::flythrough::{FlyJob, fly, write_csv};
+use farfield_client::path::CameraPath;
+use farfield_client::viewer::Viewer;
 
 /// The demo's knobs (all have defaults; the command takes only `--out`).
 #[derive(Debug, Clone)]
@@ -105,14 +105,14 @@ pub fn run(job: &DemoJob) -> anyhow::Result<DemoSummary> {
     // A small sweep of the splat threshold, streamed, and its report: the
     // trade-off between error and frame time of the built-in scene.
     let sweep = farfield_tools::bench::BenchJob {
-        source: farfield_view::render_job::Source::Server {
+        source: farfield_client::render_job::Source::Server {
             url: url.clone(),
             scene: "island".into(),
         },
         path: Some(CameraPath::from_keyframes(&[
-            farfield_view::path::Keyframe {
+            farfield_client::path::Keyframe {
                 t: 0.0,
-                orbit: Some(farfield_view::path::OrbitKey {
+                orbit: Some(farfield_client::path::OrbitKey {
                     azimuth: 30.0,
                     elevation: 25.0,
                     distance: 1.6,

@@ -9,7 +9,7 @@ use farfield_render::Renderer;
 use farfield_tools::bench::BenchJob;
 use farfield_tools::bench_cubes::{CubeBenchJob, format_table};
 use farfield_tools::bench_stream::{BenchStreamJob, default_job, describe, run_bench};
-use farfield_view::path::CameraPath;
+use farfield_client::path::CameraPath;
 
 use crate::cli::{BenchArgs, BenchCubesArgs, BenchPlpArgs};
 
@@ -106,7 +106,7 @@ pub fn bench_plp(args: BenchPlpArgs) -> anyhow::Result<()> {
     };
     let job = PlpBenchJob {
         file: args.file,
-        path: farfield_view::path::CameraPath::load(&args.path)?,
+        path: farfield_client::path::CameraPath::load(&args.path)?,
         budgets: args.budgets,
         centroid_budget: args.centroid,
         width: args.size.0,

@@ -1,18 +1,18 @@
 //! `farfield render`: one camera to a PNG, or a camera path flown with
 //! per-frame statistics (`--path`), streamed from a server or read from a
-//! file. The loops are the client core's ([`farfield_view`]).
+//! file. The loops are the client core's ([`farfield_client`]).
 
 use std::time::{Duration, Instant};
 
 use anyhow::Context;
 use farfield_net::SessionOptions;
 use farfield_render::{Renderer, SplatStyle};
-use farfield_view::budget::BudgetSpec;
-use farfield_view::flythrough::{FlyJob, fly, write_csv};
-use farfield_view::frame_loop::Until;
-use farfield_view::path::CameraPath;
-use farfield_view::render_job::{DemoRole, RenderJob, open_viewer};
-use farfield_view::report::RenderReport;
+use farfield_client::budget::BudgetSpec;
+use farfield_client::flythrough::{FlyJob, fly, write_csv};
+use farfield_client::frame_loop::Until;
+use farfield_client::path::CameraPath;
+use farfield_client::render_job::{DemoRole, RenderJob, open_viewer};
+use farfield_client::report::RenderReport;
 
 use crate::cli::RenderArgs;
 
@@ -81,7 +81,7 @@ pub fn run(args: RenderArgs) -> anyhow::Result<()> {
         session,
         present: args.present,
     });
-    let rendered = farfield_view::render_job::run_with(&job, &mut renderer, false, demo.as_ref())?;
+    let rendered = farfield_client::render_job::run_with(&job, &mut renderer, false, demo.as_ref())?;
     let r = &rendered.report;
     if args.json {
         println!("{}", serde_json::to_string(r)?);

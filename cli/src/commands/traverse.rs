@@ -5,7 +5,7 @@ use std::path::Path;
 use std::time::Instant;
 
 use farfield_traverse::TraversalOptions;
-use farfield_view::camera_spec::CameraSpec;
+use farfield_client::camera_spec::CameraSpec;
 
 pub fn run(
     file: &Path,
@@ -18,7 +18,7 @@ pub fn run(
         threshold.is_finite() && threshold >= 0.0,
         "threshold must be a non-negative number"
     );
-    let hierarchy = farfield_view::viewer::load_file(file)?;
+    let hierarchy = farfield_client::viewer::load_file(file)?;
     let camera = orbit.resolve(&hierarchy.header, size.0, size.1);
     let mut traversal = farfield_traverse::for_hierarchy(hierarchy.header.kind);
     let started = Instant::now();

@@ -12,9 +12,9 @@ use std::path::PathBuf;
 
 use anyhow::Context;
 use farfield_net::SessionOptions;
-use farfield_view::camera_spec::CameraSpec;
-use farfield_view::render_job::Source;
-use farfield_view::viewer::Viewer;
+use farfield_client::camera_spec::CameraSpec;
+use farfield_client::render_job::Source;
+use farfield_client::viewer::Viewer;
 use farfield_viewer::flight::FlightReport;
 use farfield_viewer::link::camera_fragment;
 use farfield_viewer::panel::Settings;
@@ -35,7 +35,7 @@ pub struct ViewJob {
     /// Fly the benchmark's path this many seconds, print its report, close.
     pub flight_seconds: Option<f64>,
     /// A demo session to join at start.
-    pub demo: Option<farfield_view::render_job::DemoRole>,
+    pub demo: Option<farfield_client::render_job::DemoRole>,
 }
 
 pub fn run(job: ViewJob) -> anyhow::Result<()> {

@@ -297,7 +297,7 @@ fn refined_away_from(browser: &Browser, previous: &str, what: &str) -> String {
 /// Eye and target of an address's camera.
 fn eye_target(fragment: &str) -> (glam::DVec3, glam::DVec3) {
     match camera_of_fragment(fragment) {
-        farfield_view::camera_spec::CameraSpec::Eye { eye, target, .. } => (eye, target),
+        farfield_client::camera_spec::CameraSpec::Eye { eye, target, .. } => (eye, target),
         other => panic!("not an eye camera: {other:?}"),
     }
 }

@@ -20,9 +20,9 @@ use farfield_render::headless_or_skip;
 use farfield_store::write_atomic;
 use farfield_tests::shared_data;
 use farfield_traverse::Budget;
-use farfield_view::budget::BudgetSpec;
-use farfield_view::camera_spec::CameraSpec;
-use farfield_view::render_job::Source;
+use farfield_client::budget::BudgetSpec;
+use farfield_client::camera_spec::CameraSpec;
+use farfield_client::render_job::Source;
 
 use crate::build;
 use crate::streaming::job;
@@ -76,7 +76,7 @@ fn reference_on_budget(
     let mut job = job(Source::File(file.to_owned()), camera);
     (job.width, job.height) = (width, height);
     job.budget = budget;
-    let rendered = farfield_view::render_job::run(&job, &mut renderer, false).unwrap();
+    let rendered = farfield_client::render_job::run(&job, &mut renderer, false).unwrap();
     assert!(rendered.report.refined);
     Some(rendered.rgba)
 }

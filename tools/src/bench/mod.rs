@@ -36,10 +36,10 @@ use crate::reference::Reference;
 use farfield_image::compare;
 use farfield_net::SessionOptions;
 use farfield_render::{Coverage, Renderer, SplatStyle};
-use farfield_view::frame_loop::{LastCut, draw_frame};
-use farfield_view::path::CameraPath;
-use farfield_view::render_job::Source;
-use farfield_view::viewer::Viewer;
+use farfield_client::frame_loop::{LastCut, draw_frame};
+use farfield_client::path::CameraPath;
+use farfield_client::render_job::Source;
+use farfield_client::viewer::Viewer;
 use rows::{ProgressRow, Row};
 
 /// What to measure.
@@ -94,7 +94,7 @@ fn cameras(job: &BenchJob, header: &FileHeader) -> Vec<Camera> {
         None => [1.75, 3.5, 7.0]
             .iter()
             .map(|&d| {
-                let (center, radius) = farfield_view::camera_spec::scene_sphere(header);
+                let (center, radius) = farfield_client::camera_spec::scene_sphere(header);
                 Camera::orbit(center, radius, 30.0, 20.0, d, job.width, job.height)
             })
             .collect(),

@@ -16,8 +16,8 @@ use farfield_protocol::camera::Camera;
 use farfield_protocol::file::HierarchyKind;
 use farfield_render::{Coverage, Kernel, Renderer, SplatStyle};
 use farfield_traverse::{Budget, DrawList, Registered};
-use farfield_view::frame_loop::{LastCut, draw_frame};
-use farfield_view::viewer::Viewer;
+use farfield_client::frame_loop::{LastCut, draw_frame};
+use farfield_client::viewer::Viewer;
 
 use crate::reference::Reference;
 

@@ -24,10 +24,10 @@ use farfield_net::queue::QueueTransport;
 use farfield_net::websocket::{carry_wire, drive_wire};
 use farfield_net::{NetStats, SessionOptions};
 use farfield_protocol::camera::Camera;
-use farfield_view::demo_link::DemoLink;
-use farfield_view::frame_loop::{LastCut, traverse_frame};
-use farfield_view::path::CameraPath;
-use farfield_view::viewer::Viewer;
+use farfield_client::demo_link::DemoLink;
+use farfield_client::frame_loop::{LastCut, traverse_frame};
+use farfield_client::path::CameraPath;
+use farfield_client::viewer::Viewer;
 use serde::{Deserialize, Serialize};
 
 use super::LoadJob;

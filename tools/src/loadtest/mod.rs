@@ -30,7 +30,7 @@ use std::sync::atomic::{AtomicBool, AtomicI64, Ordering};
 use std::time::{Duration, Instant};
 
 use anyhow::Context;
-use farfield_view::path::CameraPath;
+use farfield_client::path::CameraPath;
 use serde::{Deserialize, Serialize};
 
 use client::{ClientRow, Shared};

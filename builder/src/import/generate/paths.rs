@@ -1,6 +1,6 @@
 //! Camera paths that belong to generated scenes: the flythroughs the PLP
 //! paper measures its scenes on, one keyframe per frame at 30 frames per
-//! second, in the camera-path JSON format (`farfield-view`'s `path.rs`:
+//! second, in the camera-path JSON format (`farfield-client`'s `path.rs`:
 //! a list of `{"t", "eye", "target", "fov"}`, times strictly increasing,
 //! eyes in world units).
 //!

@@ -1,4 +1,4 @@
-//! farfield-view: the client core between a session and the renderer.
+//! farfield-client: the client core between a session and the renderer.
 //!
 //! Everything a front end (the CLI, a window, a browser tab) needs to show
 //! a streamed scene, and nothing that ties it to one: no server, no
