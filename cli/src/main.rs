@@ -15,7 +15,7 @@ static ALLOCATOR: farfield_builder::allocator::HugePageAlloc =
 fn main() -> ExitCode {
     // SAFETY: first thing in `main`, before any thread is started.
     unsafe { farfield_render::quiet_device_select_when_headless() };
-    farfield_serve::logs::init(None);
+    farfield_memory_server::logs::init(None);
     match run(Cli::parse()) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {

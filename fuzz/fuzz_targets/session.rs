@@ -1,5 +1,5 @@
 //! The server's HTTP and websocket session layer: bytes from a client into
-//! a real server (`farfield_serve::start`, serving a small tree), over an
+//! a real server (`farfield_memory_server::start`, serving a small tree), over an
 //! in-memory pipe instead of a socket (`RunningServer::serve_stream`).
 //!
 //! The first byte picks what the rest is:
@@ -23,7 +23,7 @@ use std::time::Duration;
 use farfield_builder::import::{Params, load_input};
 use farfield_protocol::codec::encode_control;
 use farfield_protocol::messages::{ClientMessage, PROTOCOL_VERSION};
-use farfield_serve::{RunningServer, ServerConfig};
+use farfield_memory_server::{RunningServer, ServerConfig};
 use libfuzzer_sys::fuzz_target;
 use tokio::io::{AsyncReadExt, AsyncWriteExt};
 
@@ -54,7 +54,7 @@ fn fixture() -> &'static Fixture {
         config.limits.header_timeout = Duration::from_millis(500);
         config.limits.idle_timeout = Duration::from_secs(2);
         let server = runtime
-            .block_on(farfield_serve::start(config))
+            .block_on(farfield_memory_server::start(config))
             .expect("server starts");
         Fixture { runtime, server }
     })

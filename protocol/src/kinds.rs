@@ -116,8 +116,7 @@ impl HierarchyKind {
                     || h.leaves.checked_add(1) != Some(h.nodes)
                     || h.levels != 2
                     || h.pages.len() as u64 != h.nodes
-                    || h
-                        .pages
+                    || h.pages
                         .first()
                         .is_some_and(|p| p.node_count != 1 || p.first_child != 1) =>
             {
@@ -132,8 +131,7 @@ impl HierarchyKind {
                 if h.cluster != 0
                     || h.leaves.checked_add(1) != Some(h.nodes)
                     || h.levels != 2
-                    || h
-                        .pages
+                    || h.pages
                         .first()
                         .is_some_and(|p| p.node_count != 1 || p.first_child != 1) =>
             {

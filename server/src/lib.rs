@@ -3,7 +3,7 @@
 //! exits).
 //!
 //! The work is in the crates below it: `farfield-builder` (importers and
-//! builders), `farfield-store` (the paged file on disk), `farfield-serve`
+//! builders), `farfield-store` (the paged file on disk), `farfield-memory-server`
 //! (the memory server) and, for `bench`, `farfield-tools`.
 
 pub mod cli;

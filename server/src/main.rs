@@ -12,7 +12,7 @@ static ALLOCATOR: HugePageAlloc = HugePageAlloc;
 
 fn main() -> ExitCode {
     // Info by default so `serve` logs connections; RUST_LOG overrides.
-    farfield_serve::logs::init(Some("info"));
+    farfield_memory_server::logs::init(Some("info"));
     let cli = Cli::parse();
     match run(cli) {
         Ok(report) => {

@@ -66,7 +66,7 @@ fn main() -> anyhow::Result<()> {
     let data =
         farfield_tests::shared_data().context("the viewer benchmarks need ../shared/data")?;
     let web = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../web/dist");
-    farfield_serve::web_assets::ready(Some(&web))
+    farfield_memory_server::web_assets::ready(Some(&web))
         .map_err(|why| anyhow::anyhow!("the built viewer ({why}): run web/build"))?;
     let dir = farfield_tests::scratch("bench-viewer");
     write_scene(
@@ -89,10 +89,12 @@ fn main() -> anyhow::Result<()> {
         .enable_all()
         .build()?;
     let server = rt
-        .block_on(farfield_serve::start(farfield_serve::ServerConfig {
-            web: Some(web.clone()),
-            ..farfield_serve::ServerConfig::new(&dir, ([127, 0, 0, 1], 0).into())
-        }))
+        .block_on(farfield_memory_server::start(
+            farfield_memory_server::ServerConfig {
+                web: Some(web.clone()),
+                ..farfield_memory_server::ServerConfig::new(&dir, ([127, 0, 0, 1], 0).into())
+            },
+        ))
         .context("starting the server")?;
     let addr = server.local_addr();
 
@@ -134,7 +136,7 @@ fn write_scene(
 }
 
 fn sizes(web: &Path) -> anyhow::Result<()> {
-    for file in farfield_serve::web_assets::FILES {
+    for file in farfield_memory_server::web_assets::FILES {
         let path = web.join(file);
         let raw = std::fs::metadata(&path)?.len();
         let gz = Command::new("gzip")

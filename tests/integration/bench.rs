@@ -5,12 +5,12 @@
 use std::time::Duration;
 
 use farfield_builder::import::{Params, load_input};
+use farfield_client::render_job::Source;
 use farfield_render::headless_or_skip;
 use farfield_store::write_atomic;
 use farfield_tests::scratch;
 use farfield_tools::bench::rows::{ProgressRow, Row};
 use farfield_tools::bench::{BenchJob, plots, report, rows, run};
-use farfield_client::render_job::Source;
 
 use crate::build;
 

@@ -2,8 +2,8 @@
 //! of their own: each would link the whole stack again for a few tests).
 
 use farfield_cli::commands::path::path_json;
-use farfield_server::cli::counted;
 use farfield_client::path::{CameraPath, Keyframe};
+use farfield_server::cli::counted;
 
 #[test]
 fn counts_say_their_noun_in_the_right_number() {

@@ -81,10 +81,9 @@ fn a_client_renders_beside_1000_idle_and_50_slowloris_connections() {
     let (dir, _) = scenes("crowd");
     let rt = runtime();
     let server = rt
-        .block_on(farfield_serve::start(farfield_serve::ServerConfig::new(
-            &dir,
-            SocketAddr::from(([127, 0, 0, 1], 0)),
-        )))
+        .block_on(farfield_memory_server::start(
+            farfield_memory_server::ServerConfig::new(&dir, SocketAddr::from(([127, 0, 0, 1], 0))),
+        ))
         .expect("server starts");
     let addr = server.local_addr();
     let job = island_from(format!("http://{addr}"));

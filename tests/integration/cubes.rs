@@ -10,6 +10,9 @@ use farfield_builder::cubes::source::Source as Primitives;
 use farfield_builder::cubes::{Composite, CubeOptions as BuildCubes, build_cubes};
 use farfield_builder::import::{Params, load_input};
 use farfield_builder::scene::{Geometry, Instance, Primitives as Prims, Scene};
+use farfield_client::camera_spec::CameraSpec;
+use farfield_client::frame_loop::Until;
+use farfield_client::render_job::{RenderJob, Source, run};
 use farfield_image::compare;
 use farfield_net::SessionOptions;
 use farfield_protocol::camera::Camera;
@@ -20,9 +23,6 @@ use farfield_store::write_atomic;
 use farfield_tests::{scratch, shared_data};
 use farfield_tools::reference::Reference;
 use farfield_traverse::cubes::{CubeOptions, traverse_cubes};
-use farfield_client::camera_spec::CameraSpec;
-use farfield_client::frame_loop::Until;
-use farfield_client::render_job::{RenderJob, Source, run};
 use glam::{DAffine3, DVec3, Vec3};
 
 use crate::resident;
@@ -578,10 +578,10 @@ fn corrupt_cube_pages_are_refused() {
 /// cube: the first image, from page 0 alone, is all cubes.
 #[test]
 fn the_first_streamed_image_is_made_of_cubes() {
-    use farfield_render::SplatStyle;
-    use farfield_traverse::DrawList;
     use farfield_client::frame_loop::{LastCut, draw_frame};
     use farfield_client::viewer::Viewer;
+    use farfield_render::SplatStyle;
+    use farfield_traverse::DrawList;
     let Some(mut renderer) = headless_or_skip(SIZE.0, SIZE.1).unwrap() else {
         return;
     };
@@ -668,10 +668,10 @@ fn clustered_cubes_draw_sub_cubes_and_keep_the_floor() {
 /// splat threshold: a budget no frame can meet drives it up.
 #[test]
 fn eps_adapts_to_the_frame_budget_in_flight() {
-    use farfield_render::SplatStyle;
     use farfield_client::flythrough::{FlyJob, fly};
     use farfield_client::path::{CameraPath, Keyframe, OrbitKey};
     use farfield_client::viewer::Viewer;
+    use farfield_render::SplatStyle;
     let Some(mut renderer) = headless_or_skip(SIZE.0, SIZE.1).unwrap() else {
         return;
     };

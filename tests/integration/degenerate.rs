@@ -12,14 +12,14 @@ use farfield_builder::import::{Params, load_input};
 use farfield_builder::scene::{Geometry, Primitives, Scene};
 use farfield_builder::zero_area::is_zero_area;
 use farfield_builder::{BuildOptions, PagedFile, build_spheres};
+use farfield_client::camera_spec::CameraSpec;
+use farfield_client::frame_loop::Until;
+use farfield_client::render_job::{RenderJob, Source, run};
 use farfield_image::compare;
 use farfield_net::SessionOptions;
 use farfield_render::{Coverage, Kernel, headless_or_skip};
 use farfield_store::write_atomic;
 use farfield_tests::{scratch, shared_data};
-use farfield_client::camera_spec::CameraSpec;
-use farfield_client::frame_loop::Until;
-use farfield_client::render_job::{RenderJob, Source, run};
 use glam::DVec3;
 
 const SIZE: (u32, u32) = (160, 160);

@@ -6,15 +6,15 @@
 use std::net::SocketAddr;
 use std::time::{Duration, Instant};
 
-use farfield_net::SessionOptions;
-use farfield_protocol::camera::Camera;
-use farfield_render::headless_or_skip;
-use farfield_serve::limits::Limits;
-use farfield_serve::{RunningServer, ServerConfig};
 use farfield_client::camera_spec::CameraSpec;
 use farfield_client::demo_link::DemoLink;
 use farfield_client::frame_loop::{LastCut, traverse_frame};
 use farfield_client::viewer::Viewer;
+use farfield_memory_server::limits::Limits;
+use farfield_memory_server::{RunningServer, ServerConfig};
+use farfield_net::SessionOptions;
+use farfield_protocol::camera::Camera;
+use farfield_render::headless_or_skip;
 
 use crate::streaming::{SIZE, runtime, scenes};
 
@@ -32,7 +32,8 @@ fn serve_with_grace(
         },
         ..ServerConfig::new(dir, SocketAddr::from(([127, 0, 0, 1], 0)))
     };
-    rt.block_on(farfield_serve::start(config)).expect("server")
+    rt.block_on(farfield_memory_server::start(config))
+        .expect("server")
 }
 
 #[test]

@@ -7,11 +7,11 @@ use std::time::Duration;
 
 use clap::Parser;
 use farfield_cli::cli::{Cli, run};
+use farfield_client::render_job::Source;
 use farfield_render::headless_or_skip;
 use farfield_store::write_atomic;
 use farfield_tests::scratch;
 use farfield_tools::bench::{BenchJob, report};
-use farfield_client::render_job::Source;
 
 use crate::impostors::island_file;
 

@@ -96,7 +96,7 @@ pub fn serve_dir(
     dir: &Path,
 ) -> (
     tokio::runtime::Runtime,
-    farfield_serve::RunningServer,
+    farfield_memory_server::RunningServer,
     String,
 ) {
     let rt = tokio::runtime::Builder::new_multi_thread()
@@ -104,10 +104,12 @@ pub fn serve_dir(
         .enable_all()
         .build()
         .expect("runtime");
-    let config =
-        farfield_serve::ServerConfig::new(dir, std::net::SocketAddr::from(([127, 0, 0, 1], 0)));
+    let config = farfield_memory_server::ServerConfig::new(
+        dir,
+        std::net::SocketAddr::from(([127, 0, 0, 1], 0)),
+    );
     let server = rt
-        .block_on(farfield_serve::start(config))
+        .block_on(farfield_memory_server::start(config))
         .expect("server starts");
     let url = format!("http://{}", server.local_addr());
     (rt, server, url)

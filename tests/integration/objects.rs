@@ -8,10 +8,10 @@ use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
+use farfield_memory_server::{RunningServer, ServerConfig, start};
 use farfield_protocol::file::FileHeader;
 use farfield_protocol::messages::ServerMessage;
 use farfield_render::headless_or_skip;
-use farfield_serve::{RunningServer, ServerConfig, start};
 use std::sync::atomic::Ordering;
 
 use farfield_objects::ObjectScene;

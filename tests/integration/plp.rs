@@ -542,10 +542,10 @@ fn the_whole_budget_gives_the_full_render_and_coverage_one() {
 
 #[test]
 fn streamed_plp_at_a_budget_equals_the_file_and_fetches_less() {
-    use farfield_render::headless_or_skip;
     use farfield_client::budget::BudgetSpec;
     use farfield_client::camera_spec::CameraSpec;
     use farfield_client::render_job::{RenderJob, Source, run};
+    use farfield_render::headless_or_skip;
 
     let Some(mut renderer) = headless_or_skip(160, 120).expect("adapter") else {
         return;
@@ -621,8 +621,8 @@ fn streamed_plp_at_a_budget_equals_the_file_and_fetches_less() {
 
 #[test]
 fn bench_plp_reports_coverage_wrong_pixels_and_the_papers_row() {
-    use farfield_tools::bench_plp::{PaperRow, PlpBenchJob, format_table, frames_csv, run};
     use farfield_client::path::{CameraPath, Keyframe};
+    use farfield_tools::bench_plp::{PaperRow, PlpBenchJob, format_table, frames_csv, run};
 
     let Some(mut renderer) = farfield_render::headless_or_skip(160, 120).expect("adapter") else {
         return;

@@ -14,13 +14,13 @@ use farfield_builder::cubes::{CubeOptions, build_cubes};
 use farfield_builder::import::{Params, load_input};
 use farfield_builder::plp::{PlpOptions, build_plp};
 use farfield_builder::{BuildOptions, PagedFile, build_spheres};
-use farfield_net::SessionOptions;
-use farfield_serve::{ServerConfig, start};
-use farfield_store::write_atomic;
-use farfield_tests::{scratch, shared_data};
 use farfield_client::camera_spec::CameraSpec;
 use farfield_client::frame_loop::{LastCut, traverse_frame};
 use farfield_client::viewer::Viewer;
+use farfield_memory_server::{ServerConfig, start};
+use farfield_net::SessionOptions;
+use farfield_store::write_atomic;
+use farfield_tests::{scratch, shared_data};
 
 use crate::streaming::runtime;
 

@@ -17,10 +17,10 @@ use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
-use farfield_render::{Renderer, headless_or_skip};
-use farfield_tests::scratch;
 use farfield_client::camera_spec::CameraSpec;
 use farfield_client::render_job::{Source, run};
+use farfield_render::{Renderer, headless_or_skip};
+use farfield_tests::scratch;
 
 use crate::s3::S3Store;
 use crate::serve::support::ChildServer;

@@ -6,18 +6,18 @@ use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
 use farfield_builder::import::{Params, load_input};
-use farfield_image::compare;
-use farfield_net::SessionOptions;
-use farfield_protocol::file::FileHeader;
-use farfield_render::{Kernel, Renderer, SplatStyle, headless_or_skip};
-use farfield_serve::{RunningServer, ServerConfig, start};
-use farfield_store::write_atomic;
-use farfield_tests::{scratch, shared_data};
-use farfield_traverse::DrawList;
 use farfield_client::camera_spec::CameraSpec;
 use farfield_client::frame_loop::{LastCut, Settle, Until, draw_frame};
 use farfield_client::render_job::{RenderJob, Rendered, Source, run};
 use farfield_client::viewer::Viewer;
+use farfield_image::compare;
+use farfield_memory_server::{RunningServer, ServerConfig, start};
+use farfield_net::SessionOptions;
+use farfield_protocol::file::FileHeader;
+use farfield_render::{Kernel, Renderer, SplatStyle, headless_or_skip};
+use farfield_store::write_atomic;
+use farfield_tests::{scratch, shared_data};
+use farfield_traverse::DrawList;
 
 use crate::build;
 

@@ -12,8 +12,8 @@ use std::path::{Path, PathBuf};
 use clap::Parser;
 use farfield_cli::cli::{Cli, run};
 use farfield_image::files::compare_files;
+use farfield_memory_server::tls::TlsFiles;
 use farfield_render::headless_or_skip;
-use farfield_serve::tls::TlsFiles;
 
 use crate::streaming::{runtime, scenes};
 
@@ -45,14 +45,15 @@ fn the_cli_renders_over_tls_with_a_token_and_is_refused_without() {
     }
     let (dir, _) = scenes("tls");
     let rt = runtime();
-    let mut config = farfield_serve::ServerConfig::new(&dir, SocketAddr::from(([127, 0, 0, 1], 0)));
+    let mut config =
+        farfield_memory_server::ServerConfig::new(&dir, SocketAddr::from(([127, 0, 0, 1], 0)));
     config.tls = Some(TlsFiles {
         cert: tls_file("server.pem"),
         key: tls_file("server.key"),
     });
     config.access.tokens.insert("s3cret".into(), None);
     let server = rt
-        .block_on(farfield_serve::start(config))
+        .block_on(farfield_memory_server::start(config))
         .expect("server starts");
     let url = format!("https://127.0.0.1:{}", server.local_addr().port());
     let ca = tls_file("ca.pem");
@@ -180,10 +181,11 @@ fn serve_tls(
     rt: &tokio::runtime::Runtime,
     dir: &Path,
     files: TlsFiles,
-) -> farfield_serve::RunningServer {
-    let mut config = farfield_serve::ServerConfig::new(dir, SocketAddr::from(([127, 0, 0, 1], 0)));
+) -> farfield_memory_server::RunningServer {
+    let mut config =
+        farfield_memory_server::ServerConfig::new(dir, SocketAddr::from(([127, 0, 0, 1], 0)));
     config.tls = Some(files);
-    rt.block_on(farfield_serve::start(config))
+    rt.block_on(farfield_memory_server::start(config))
         .expect("server starts")
 }
 

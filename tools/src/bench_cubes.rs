@@ -16,10 +16,10 @@ use farfield_traverse::cubes::{CubeCut, CubeOptions, traverse_cubes_into};
 use serde::Serialize;
 
 use crate::reference::Reference;
+use farfield_client::camera_spec::scene_sphere;
 use farfield_image::compare;
 use farfield_render::{Coverage, Renderer};
 use farfield_render::{CubeFrame, draw_cut};
-use farfield_client::camera_spec::scene_sphere;
 
 /// What to measure.
 #[derive(Debug, Clone)]

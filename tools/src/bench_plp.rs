@@ -12,13 +12,13 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use anyhow::Context;
+use farfield_client::path::CameraPath;
 use farfield_protocol::camera::Camera;
 use farfield_protocol::file::HierarchyKind;
 use farfield_protocol::hierarchy::Hierarchy;
 use farfield_render::{Coverage, GpuVertex, Renderer, pack_plp, visible_ids};
 use farfield_traverse::Budget;
 use farfield_traverse::plp::{Order, PlpCut, PlpOptions, PlpState, Solidity, traverse_plp_into};
-use farfield_client::path::CameraPath;
 use serde::Serialize;
 
 use crate::bench::visible::common_count;

@@ -20,15 +20,15 @@ use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::time::{Duration, Instant};
 
 use anyhow::Context;
+use farfield_client::camera_spec::CameraSpec;
+use farfield_client::frame_loop::{LastCut, Until, draw_frame};
+use farfield_client::render_job::{RenderJob, Source, run};
+use farfield_client::viewer::Viewer;
 use farfield_net::queue::QueueTransport;
 use farfield_net::websocket::drive;
 use farfield_net::{Session, SessionEvent, SessionOptions, stream_url};
 use farfield_protocol::messages::PageWish;
 use farfield_render::{Kernel, Renderer, SplatStyle};
-use farfield_client::camera_spec::CameraSpec;
-use farfield_client::frame_loop::{LastCut, Until, draw_frame};
-use farfield_client::render_job::{RenderJob, Source, run};
-use farfield_client::viewer::Viewer;
 use serde::Serialize;
 use tokio::io::{AsyncReadExt, AsyncWriteExt};
 
@@ -88,13 +88,15 @@ pub fn run_bench(job: &BenchStreamJob) -> anyhow::Result<BenchStreamReport> {
         .worker_threads(2)
         .enable_all()
         .build()?;
-    let server = rt.block_on(farfield_serve::start(farfield_serve::ServerConfig {
-        cache_bytes: job.cache_bytes,
-        ..farfield_serve::ServerConfig::files(
-            vec![(name.clone(), job.scene.clone())],
-            SocketAddr::from(([127, 0, 0, 1], 0)),
-        )
-    }))?;
+    let server = rt.block_on(farfield_memory_server::start(
+        farfield_memory_server::ServerConfig {
+            cache_bytes: job.cache_bytes,
+            ..farfield_memory_server::ServerConfig::files(
+                vec![(name.clone(), job.scene.clone())],
+                SocketAddr::from(([127, 0, 0, 1], 0)),
+            )
+        },
+    ))?;
     let addr = server.local_addr();
     let url = format!("http://{addr}");
     let mut renderer = Renderer::new_headless(job.width, job.height)?;

@@ -12,12 +12,12 @@
 use std::sync::{Arc, Mutex};
 
 use egui::{Color32, Rect, Sense, Vec2, pos2};
-use farfield_render::{Renderer, SplatStyle};
-use farfield_traverse::DrawList;
 use farfield_client::camera_spec::CameraSpec;
 use farfield_client::frame_loop::{LastCut, draw_frame};
 use farfield_client::render_job::DemoRole;
 use farfield_client::viewer::Viewer;
+use farfield_render::{Renderer, SplatStyle};
+use farfield_traverse::DrawList;
 use web_time::Instant;
 
 use crate::demo_panel::{Demo, DemoActions};

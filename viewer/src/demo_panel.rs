@@ -3,10 +3,10 @@
 //! camera each frame (a follower jumps to the presenter's view; a
 //! presenter shows its own).
 
-use farfield_protocol::camera::Camera;
 use farfield_client::demo_link::DemoLink;
 use farfield_client::render_job::DemoRole;
 use farfield_client::viewer::Viewer;
+use farfield_protocol::camera::Camera;
 
 use crate::rig::{CameraRig, Orbit};
 

@@ -213,8 +213,8 @@ pub fn show(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use farfield_traverse::Budget;
     use farfield_client::frame_loop::LastCut;
+    use farfield_traverse::Budget;
 
     #[test]
     fn the_epsilon_control_sets_the_bound_image_caching_holds() {

@@ -4,10 +4,10 @@ use std::cell::Cell;
 
 use base64::Engine;
 
-use farfield_net::SessionOptions;
-use farfield_net::browser::BrowserTransport;
 use farfield_client::camera_spec::CameraSpec;
 use farfield_client::viewer::Viewer;
+use farfield_net::SessionOptions;
+use farfield_net::browser::BrowserTransport;
 use farfield_viewer::flight::FlightReport;
 use farfield_viewer::link::{camera_fragment, parse_fragment};
 use farfield_viewer::status::Status;

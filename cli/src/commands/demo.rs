@@ -16,11 +16,11 @@ use farfield_builder::import::{Params, generate::DEFAULT_SCENE, load_input};
 use farfield_builder::{BuildOptions, build_spheres};
 use farfield_store::{SceneFile, write_atomic};
 
-use farfield_net::SessionOptions;
-use farfield_render::{Renderer, SplatStyle};
 use farfield_client::flythrough::{FlyJob, fly, write_csv};
 use farfield_client::path::CameraPath;
 use farfield_client::viewer::Viewer;
+use farfield_net::SessionOptions;
+use farfield_render::{Renderer, SplatStyle};
 
 /// The demo's knobs (all have defaults; the command takes only `--out`).
 #[derive(Debug, Clone)]
@@ -75,12 +75,12 @@ pub fn run(job: &DemoJob) -> anyhow::Result<DemoSummary> {
         .worker_threads(2)
         .enable_all()
         .build()?;
-    let config = farfield_serve::ServerConfig {
+    let config = farfield_memory_server::ServerConfig {
         cache_bytes: 64 << 20,
-        ..farfield_serve::ServerConfig::new(&job.out, SocketAddr::from(([127, 0, 0, 1], 0)))
+        ..farfield_memory_server::ServerConfig::new(&job.out, SocketAddr::from(([127, 0, 0, 1], 0)))
     };
     let server = runtime
-        .block_on(farfield_serve::start(config))
+        .block_on(farfield_memory_server::start(config))
         .context("starting the embedded server")?;
     let url = format!("http://{}", server.local_addr());
     let mut renderer = Renderer::new_headless(job.width, job.height)?;

@@ -5,11 +5,11 @@ use std::path::{Path, PathBuf};
 use std::time::Duration;
 
 use anyhow::Context;
+use farfield_client::path::CameraPath;
 use farfield_render::Renderer;
 use farfield_tools::bench::BenchJob;
 use farfield_tools::bench_cubes::{CubeBenchJob, format_table};
 use farfield_tools::bench_stream::{BenchStreamJob, default_job, describe, run_bench};
-use farfield_client::path::CameraPath;
 
 use crate::cli::{BenchArgs, BenchCubesArgs, BenchPlpArgs};
 

@@ -5,14 +5,14 @@
 use std::time::{Duration, Instant};
 
 use anyhow::Context;
-use farfield_net::SessionOptions;
-use farfield_render::{Renderer, SplatStyle};
 use farfield_client::budget::BudgetSpec;
 use farfield_client::flythrough::{FlyJob, fly, write_csv};
 use farfield_client::frame_loop::Until;
 use farfield_client::path::CameraPath;
 use farfield_client::render_job::{DemoRole, RenderJob, open_viewer};
 use farfield_client::report::RenderReport;
+use farfield_net::SessionOptions;
+use farfield_render::{Renderer, SplatStyle};
 
 use crate::cli::RenderArgs;
 
@@ -81,7 +81,8 @@ pub fn run(args: RenderArgs) -> anyhow::Result<()> {
         session,
         present: args.present,
     });
-    let rendered = farfield_client::render_job::run_with(&job, &mut renderer, false, demo.as_ref())?;
+    let rendered =
+        farfield_client::render_job::run_with(&job, &mut renderer, false, demo.as_ref())?;
     let r = &rendered.report;
     if args.json {
         println!("{}", serde_json::to_string(r)?);

@@ -4,8 +4,8 @@
 use std::path::Path;
 use std::time::Instant;
 
-use farfield_traverse::TraversalOptions;
 use farfield_client::camera_spec::CameraSpec;
+use farfield_traverse::TraversalOptions;
 
 pub fn run(
     file: &Path,

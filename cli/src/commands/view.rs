@@ -11,10 +11,10 @@
 use std::path::PathBuf;
 
 use anyhow::Context;
-use farfield_net::SessionOptions;
 use farfield_client::camera_spec::CameraSpec;
 use farfield_client::render_job::Source;
 use farfield_client::viewer::Viewer;
+use farfield_net::SessionOptions;
 use farfield_viewer::flight::FlightReport;
 use farfield_viewer::link::camera_fragment;
 use farfield_viewer::panel::Settings;

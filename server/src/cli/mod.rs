@@ -15,7 +15,7 @@ use std::net::SocketAddr;
 use std::path::PathBuf;
 use std::time::Duration;
 
-use farfield_serve::limits::Limits;
+use farfield_memory_server::limits::Limits;
 
 use clap::{Parser, Subcommand};
 
@@ -247,11 +247,11 @@ pub struct ServeArgs {
     #[arg(long, default_value = "127.0.0.1:7878")]
     pub listen: SocketAddr,
     /// Bound on the shared page cache, in bytes.
-    #[arg(long, default_value_t = farfield_serve::DEFAULT_CACHE_BYTES)]
+    #[arg(long, default_value_t = farfield_memory_server::DEFAULT_CACHE_BYTES)]
     pub cache_bytes: u64,
     /// Seconds between looks at the scenes folder for scene files added,
     /// replaced, changed or deleted while serving (0: never look again).
-    #[arg(long, default_value_t = farfield_serve::rescan::DEFAULT_RESCAN_INTERVAL.as_secs_f64(), value_parser = seconds)]
+    #[arg(long, default_value_t = farfield_memory_server::rescan::DEFAULT_RESCAN_INTERVAL.as_secs_f64(), value_parser = seconds)]
     pub rescan_seconds: f64,
     #[command(flatten)]
     pub limits: LimitArgs,
@@ -292,7 +292,7 @@ pub struct ServeArgs {
 }
 
 /// What one client may cost and how long it may take (defaults suit a
-/// public server; see `farfield_serve::limits`).
+/// public server; see `farfield_memory_server::limits`).
 #[derive(Debug, clap::Args)]
 pub struct LimitArgs {
     /// Connections open at once, all clients together (past it: 503).

@@ -1,7 +1,7 @@
 //! `farfield-server serve`: runs the memory server until SIGINT or SIGTERM.
 //!
 //! The command line is synchronous, so this builds a tokio runtime, starts
-//! [`farfield_serve`] in it, prints `listening on ADDR` as the first line of
+//! [`farfield_memory_server`] in it, prints `listening on ADDR` as the first line of
 //! stdout at once (scripts and tests pass port 0 and read the real port
 //! from it), and blocks until a signal. The returned report holds the
 //! final counters.
@@ -13,10 +13,10 @@ use serde_json::json;
 
 use super::{Report, ServeArgs};
 use anyhow::Context as _;
-use farfield_serve::access::Access;
-use farfield_serve::origin::Origin;
-use farfield_serve::tls::TlsFiles;
-use farfield_serve::{ServerConfig, start};
+use farfield_memory_server::access::Access;
+use farfield_memory_server::origin::Origin;
+use farfield_memory_server::tls::TlsFiles;
+use farfield_memory_server::{ServerConfig, start};
 
 pub fn run(args: &ServeArgs) -> anyhow::Result<Report> {
     let origin = if farfield_objects::is_store_url(&args.scenes) {
@@ -29,7 +29,7 @@ pub fn run(args: &ServeArgs) -> anyhow::Result<Report> {
     };
     let runtime = tokio::runtime::Builder::new_multi_thread()
         .enable_all()
-        .thread_name("farfield-serve")
+        .thread_name("farfield-memory-server")
         .build()?;
     let snapshot = runtime.block_on(async {
         // Handlers go in before the address is printed, so a script that

@@ -18,7 +18,7 @@ use super::support::*;
 const FLOOD: Duration = Duration::from_secs(3);
 /// Growth of the server's peak RSS over its start allowed for all floods
 /// together: a few connections' bounds (about 1.3 MiB each, see
-/// `farfield_serve::limits`) plus allocator slack, far below what one
+/// `farfield_memory_server::limits`) plus allocator slack, far below what one
 /// unbounded flood grows in this time.
 const ALLOWED_GROWTH_KIB: u64 = 48 << 10;
 

@@ -8,8 +8,8 @@ use std::path::Path;
 use std::time::Duration;
 
 use farfield_builder::PagedFile;
+use farfield_memory_server::RunningServer;
 use farfield_protocol::messages::{ClientMessage, PageWish, ServerMessage};
-use farfield_serve::RunningServer;
 use farfield_store::write_atomic;
 
 use super::support::*;

@@ -8,6 +8,7 @@ use std::time::Duration;
 
 use farfield_builder::PagedFile;
 use farfield_builder::import::{Params, load_input};
+use farfield_memory_server::{RunningServer, ServerConfig, start};
 use farfield_net::stream_url;
 use farfield_protocol::codec::{decode_control, encode_control, frame_kind};
 use farfield_protocol::file::{FileHeader, HEADER_PREFIX_BYTES};
@@ -15,7 +16,6 @@ use farfield_protocol::messages::{
     ClientMessage, FrameKind, HEADER_PART_BYTES, PROTOCOL_VERSION, PageWish, ServerMessage,
 };
 use farfield_protocol::page::claimed_index;
-use farfield_serve::{RunningServer, ServerConfig, start};
 use farfield_store::write_atomic;
 use farfield_tests::scratch;
 use futures_util::{SinkExt, StreamExt};

@@ -13,7 +13,7 @@ use std::path::PathBuf;
 use std::sync::Mutex;
 use std::time::Duration;
 
-use farfield_serve::{RunningServer, ServerConfig, start};
+use farfield_memory_server::{RunningServer, ServerConfig, start};
 use farfield_tests::scratch;
 use serde_json::Value;
 
@@ -38,7 +38,7 @@ const REPORT: &str = "const c = document.getElementById('farfield'); \
 /// The viewer's built files, or `None` (having said why) when absent.
 fn web_dir() -> Option<PathBuf> {
     let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../web/dist");
-    match farfield_serve::web_assets::ready(Some(&dir)) {
+    match farfield_memory_server::web_assets::ready(Some(&dir)) {
         Ok(()) => Some(dir),
         Err(why) => {
             missing(&format!(

@@ -15,14 +15,14 @@ use std::path::{Path, PathBuf};
 
 use farfield_builder::import::{Params, load_input};
 use farfield_builder::plp::PlpOptions;
+use farfield_client::budget::BudgetSpec;
+use farfield_client::camera_spec::CameraSpec;
+use farfield_client::render_job::Source;
 use farfield_image::compare;
 use farfield_render::headless_or_skip;
 use farfield_store::write_atomic;
 use farfield_tests::shared_data;
 use farfield_traverse::Budget;
-use farfield_client::budget::BudgetSpec;
-use farfield_client::camera_spec::CameraSpec;
-use farfield_client::render_job::Source;
 
 use crate::build;
 use crate::streaming::job;

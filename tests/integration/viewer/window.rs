@@ -226,9 +226,8 @@ fn view_child() {
         return;
     };
     use clap::Parser;
-    let cli = farfield_cli::cli::Cli::try_parse_from(
-        std::iter::once("farfield").chain(args.split('\t')),
-    )
-    .expect("arguments");
+    let cli =
+        farfield_cli::cli::Cli::try_parse_from(std::iter::once("farfield").chain(args.split('\t')))
+            .expect("arguments");
     farfield_cli::cli::run(cli).expect("farfield view");
 }

@@ -33,13 +33,13 @@ use farfield_protocol::file::FileHeader;
 use serde::{Deserialize, Serialize};
 
 use crate::reference::Reference;
-use farfield_image::compare;
-use farfield_net::SessionOptions;
-use farfield_render::{Coverage, Renderer, SplatStyle};
 use farfield_client::frame_loop::{LastCut, draw_frame};
 use farfield_client::path::CameraPath;
 use farfield_client::render_job::Source;
 use farfield_client::viewer::Viewer;
+use farfield_image::compare;
+use farfield_net::SessionOptions;
+use farfield_render::{Coverage, Renderer, SplatStyle};
 use rows::{ProgressRow, Row};
 
 /// What to measure.

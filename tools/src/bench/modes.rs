@@ -12,12 +12,12 @@ use std::rc::Rc;
 use std::time::Instant;
 
 use anyhow::{Context, bail};
+use farfield_client::frame_loop::{LastCut, draw_frame};
+use farfield_client::viewer::Viewer;
 use farfield_protocol::camera::Camera;
 use farfield_protocol::file::HierarchyKind;
 use farfield_render::{Coverage, Kernel, Renderer, SplatStyle};
 use farfield_traverse::{Budget, DrawList, Registered};
-use farfield_client::frame_loop::{LastCut, draw_frame};
-use farfield_client::viewer::Viewer;
 
 use crate::reference::Reference;
 

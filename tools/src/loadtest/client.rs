@@ -20,14 +20,14 @@ use std::sync::atomic::{AtomicBool, AtomicI64, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
-use farfield_net::queue::QueueTransport;
-use farfield_net::websocket::{carry_wire, drive_wire};
-use farfield_net::{NetStats, SessionOptions};
-use farfield_protocol::camera::Camera;
 use farfield_client::demo_link::DemoLink;
 use farfield_client::frame_loop::{LastCut, traverse_frame};
 use farfield_client::path::CameraPath;
 use farfield_client::viewer::Viewer;
+use farfield_net::queue::QueueTransport;
+use farfield_net::websocket::{carry_wire, drive_wire};
+use farfield_net::{NetStats, SessionOptions};
+use farfield_protocol::camera::Camera;
 use serde::{Deserialize, Serialize};
 
 use super::LoadJob;

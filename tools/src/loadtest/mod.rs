@@ -140,9 +140,9 @@ impl LoadJob {
         );
         if let Some(name) = &self.session {
             anyhow::ensure!(
-                farfield_serve::demo::valid_name(name),
+                farfield_memory_server::demo::valid_name(name),
                 "--session: a session name is 1 to {} letters, digits, '-', '_' or '.'",
-                farfield_serve::demo::MAX_NAME_BYTES
+                farfield_memory_server::demo::MAX_NAME_BYTES
             );
             anyhow::ensure!(
                 self.clients >= 2,
