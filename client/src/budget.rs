@@ -19,7 +19,7 @@ pub struct BudgetSpec {
 
 impl BudgetSpec {
     /// Sets a frame loop's cut to this budget.
-    pub fn apply(&self, cut: &mut crate::frame_loop::LastCut) {
+    pub fn apply(&self, cut: &mut crate::frame_loop::FrameState) {
         cut.budget = self.triangles;
         cut.time_budget = self.ms.map(TimeBudget::new);
         if let Some(kind) = self.mode {

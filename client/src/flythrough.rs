@@ -17,7 +17,7 @@ use serde::Serialize;
 use web_time::Instant;
 
 use crate::budget::BudgetSpec;
-use crate::frame_loop::{FrameTimes, LastCut, Settle, Until, draw_frame};
+use crate::frame_loop::{FrameState, FrameTimes, Settle, Until, draw_frame};
 use crate::path::CameraPath;
 use crate::viewer::Viewer;
 
@@ -138,7 +138,7 @@ pub fn fly(
     let mut threshold = (final_threshold * 4.0).max(2.0);
     let frames = (job.path.duration() * job.fps).ceil().max(0.0) as u64 + 1;
     let mut stats = Vec::with_capacity(frames as usize + 16);
-    let mut cut = LastCut::default();
+    let mut cut = FrameState::default();
     job.budget.apply(&mut cut);
     cut.final_threshold = Some(final_threshold);
     if job.known_path
@@ -217,7 +217,7 @@ fn stat(
     path_s: f64,
     started: Instant,
     threshold: f64,
-    cut: &LastCut,
+    cut: &FrameState,
     viewer: &Viewer,
     times: FrameTimes,
     frame_ms: f64,

@@ -45,11 +45,14 @@ pub struct FrameTimes {
     pub threshold_px: f64,
 }
 
-/// The last traversal, of whichever kind the scene is: made from the
-/// registry ([`farfield_traverse::for_hierarchy`]) on the first frame and
-/// reused (with its buffers) after.
+/// What the frame loop keeps for one scene from frame to frame: the last
+/// traversal, of whichever kind the scene is (made from the registry,
+/// [`farfield_traverse::for_hierarchy`], on the first frame and reused with
+/// its buffers after, so its cut is the last frame's), and what steers it:
+/// the budget, the preferred kind, the final threshold, the measured
+/// drawing costs and the path ahead.
 #[derive(Debug, Default)]
-pub struct LastCut {
+pub struct FrameState {
     traversal: Option<Box<dyn Traversal>>,
     /// How many triangles a budgeted kind (PLP) may draw a frame.
     pub budget: Budget,
@@ -68,11 +71,11 @@ pub struct LastCut {
     /// `None` until then).
     pub costs: Option<farfield_traverse::impostors::CostModel>,
     /// The eyes of the frames to come, when the path is known (see
-    /// [`LastCut::set_known_path`]).
+    /// [`FrameState::set_known_path`]).
     known_path: Vec<glam::DVec3>,
 }
 
-impl LastCut {
+impl FrameState {
     /// Draws with `kind` wherever the file's hierarchy is its.
     pub fn prefer(&mut self, kind: &'static Registered) {
         self.prefer = Some(kind);
@@ -192,7 +195,7 @@ pub fn finer_threshold(threshold: f64, finest: f64) -> f64 {
 
 /// One frame's traversal without a draw: traverse what is resident, mark
 /// what was used, ask for what is missing. What to draw is left in `cut`
-/// ([`LastCut::draw_list`]). A headless client (the load test's) runs
+/// ([`FrameState::draw_list`]). A headless client (the load test's) runs
 /// only this; [`draw_frame`] draws after it. Returns the threshold used
 /// and the traversal's milliseconds.
 pub fn traverse_frame(
@@ -200,7 +203,7 @@ pub fn traverse_frame(
     camera: &Camera,
     threshold: f64,
     min_alpha: u8,
-    cut: &mut LastCut,
+    cut: &mut FrameState,
 ) -> anyhow::Result<(f64, f64)> {
     let Some(h) = viewer.hierarchy() else {
         bail!("no scene header yet");
@@ -235,7 +238,7 @@ pub fn draw_frame(
     camera: &Camera,
     threshold: f64,
     style: &SplatStyle,
-    cut: &mut LastCut,
+    cut: &mut FrameState,
     rgba: &mut Vec<u8>,
 ) -> anyhow::Result<FrameTimes> {
     if viewer
@@ -282,7 +285,7 @@ pub struct Settle {
     started: Instant,
     timeout: Duration,
     pub keep_frames: bool,
-    pub cut: LastCut,
+    pub cut: FrameState,
     pub rgba: Vec<u8>,
     pub frames: Vec<Vec<u8>>,
     pub frame_count: u64,
@@ -302,7 +305,7 @@ impl Settle {
             started,
             timeout,
             keep_frames: false,
-            cut: LastCut::default(),
+            cut: FrameState::default(),
             rgba: Vec::new(),
             frames: Vec::new(),
             frame_count: 0,

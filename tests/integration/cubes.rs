@@ -578,7 +578,7 @@ fn corrupt_cube_pages_are_refused() {
 /// cube: the first image, from page 0 alone, is all cubes.
 #[test]
 fn the_first_streamed_image_is_made_of_cubes() {
-    use farfield_client::frame_loop::{LastCut, draw_frame};
+    use farfield_client::frame_loop::{FrameState, draw_frame};
     use farfield_client::viewer::Viewer;
     use farfield_render::SplatStyle;
     use farfield_traverse::DrawList;
@@ -605,7 +605,7 @@ fn the_first_streamed_image_is_made_of_cubes() {
     }
     assert_eq!(viewer.hierarchy().unwrap().resident_pages(), 1);
     let camera = orbit(viewer.hierarchy().unwrap(), 30.0, 1.75);
-    let (mut cuts, mut rgba) = (LastCut::default(), Vec::new());
+    let (mut cuts, mut rgba) = (FrameState::default(), Vec::new());
     draw_frame(
         &mut viewer,
         &mut renderer,

@@ -8,7 +8,7 @@ use std::time::{Duration, Instant};
 
 use farfield_client::camera_spec::CameraSpec;
 use farfield_client::demo_link::DemoLink;
-use farfield_client::frame_loop::{LastCut, traverse_frame};
+use farfield_client::frame_loop::{FrameState, traverse_frame};
 use farfield_client::viewer::Viewer;
 use farfield_memory_server::limits::Limits;
 use farfield_memory_server::{RunningServer, ServerConfig};
@@ -121,7 +121,7 @@ fn followers_render_the_presenters_image_from_the_command_line() {
 pub(crate) struct Member {
     pub(crate) viewer: Viewer,
     pub(crate) link: DemoLink,
-    cut: LastCut,
+    cut: FrameState,
 }
 
 impl Member {
@@ -132,7 +132,7 @@ impl Member {
         Self {
             viewer,
             link,
-            cut: LastCut::default(),
+            cut: FrameState::default(),
         }
     }
 

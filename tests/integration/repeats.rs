@@ -15,7 +15,7 @@ use farfield_builder::import::{Params, load_input};
 use farfield_builder::plp::{PlpOptions, build_plp};
 use farfield_builder::{BuildOptions, PagedFile, build_spheres};
 use farfield_client::camera_spec::CameraSpec;
-use farfield_client::frame_loop::{LastCut, traverse_frame};
+use farfield_client::frame_loop::{FrameState, traverse_frame};
 use farfield_client::viewer::Viewer;
 use farfield_memory_server::{ServerConfig, start};
 use farfield_net::SessionOptions;
@@ -109,7 +109,7 @@ fn one_viewer_is_sent_each_page_it_keeps_once() {
             assert!(Instant::now() < deadline, "{name}: no header");
         }
         let camera = CameraSpec::default().resolve(viewer.header().expect("header"), 800, 600);
-        let mut cut = LastCut::default();
+        let mut cut = FrameState::default();
         let mut frames = 0;
         loop {
             viewer.pump_for(budget).expect("pump");

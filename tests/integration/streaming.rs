@@ -7,7 +7,7 @@ use std::time::{Duration, Instant};
 
 use farfield_builder::import::{Params, load_input};
 use farfield_client::camera_spec::CameraSpec;
-use farfield_client::frame_loop::{LastCut, Settle, Until, draw_frame};
+use farfield_client::frame_loop::{FrameState, Settle, Until, draw_frame};
 use farfield_client::render_job::{RenderJob, Rendered, Source, run};
 use farfield_client::viewer::Viewer;
 use farfield_image::compare;
@@ -179,7 +179,7 @@ fn the_first_image_comes_from_page_zero_and_error_never_grows() {
     };
     let header = h.header.clone();
     let cam = camera().resolve(&header, SIZE.0, SIZE.1);
-    let (mut cuts, mut first) = (LastCut::default(), Vec::new());
+    let (mut cuts, mut first) = (FrameState::default(), Vec::new());
     draw_frame(
         &mut viewer,
         &mut renderer,

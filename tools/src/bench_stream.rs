@@ -21,7 +21,7 @@ use std::time::{Duration, Instant};
 
 use anyhow::Context;
 use farfield_client::camera_spec::CameraSpec;
-use farfield_client::frame_loop::{LastCut, Until, draw_frame};
+use farfield_client::frame_loop::{FrameState, Until, draw_frame};
 use farfield_client::render_job::{RenderJob, Source, run};
 use farfield_client::viewer::Viewer;
 use farfield_net::queue::QueueTransport;
@@ -186,7 +186,7 @@ fn first_image_ms(
     }
     let header = viewer.header().cloned().context("header")?;
     let cam = camera.resolve(&header, w, h);
-    let (mut cut, mut rgba) = (LastCut::default(), Vec::new());
+    let (mut cut, mut rgba) = (FrameState::default(), Vec::new());
     draw_frame(
         &mut viewer,
         renderer,

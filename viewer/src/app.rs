@@ -13,7 +13,7 @@ use std::sync::{Arc, Mutex};
 
 use egui::{Color32, Rect, Sense, Vec2, pos2};
 use farfield_client::camera_spec::CameraSpec;
-use farfield_client::frame_loop::{LastCut, draw_frame};
+use farfield_client::frame_loop::{FrameState, draw_frame};
 use farfield_client::render_job::DemoRole;
 use farfield_client::viewer::Viewer;
 use farfield_render::{Renderer, SplatStyle};
@@ -114,7 +114,7 @@ pub struct ViewerApp {
     texture: Option<(egui::TextureId, u64)>,
     rig: Option<CameraRig>,
     refine: Refinement,
-    cut: LastCut,
+    cut: FrameState,
     rgba: Vec<u8>,
     show_panel: bool,
     flying: bool,
@@ -195,7 +195,7 @@ impl ViewerApp {
             texture: None,
             rig: None,
             refine,
-            cut: LastCut::default(),
+            cut: FrameState::default(),
             rgba: Vec::new(),
             flying: false,
             status,

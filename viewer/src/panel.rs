@@ -65,7 +65,7 @@ impl Settings {
     /// Sets the frame loop's PLP budget: the slider's share, or the frame
     /// time when one is set. The measured draw rate is kept while the
     /// frame time stays the same (a fresh one would start from a guess).
-    pub fn apply_plp_budget(&self, cut: &mut farfield_client::frame_loop::LastCut) {
+    pub fn apply_plp_budget(&self, cut: &mut farfield_client::frame_loop::FrameState) {
         cut.budget = self.plp_budget();
         let ms = self.plp_budget_ms;
         cut.time_budget = if ms.is_finite() && ms > 0.0 {
@@ -81,7 +81,7 @@ impl Settings {
     /// Sets the frame loop's image-caching ε: the kinds whose threshold is
     /// an error bound they hold (image caching) draw at it on every frame;
     /// the others keep refining. A bad value falls back to the default.
-    pub fn apply_epsilon(&self, cut: &mut farfield_client::frame_loop::LastCut) {
+    pub fn apply_epsilon(&self, cut: &mut farfield_client::frame_loop::FrameState) {
         let eps = self.epsilon_px;
         cut.final_threshold = Some(if eps.is_finite() && eps >= 0.0 {
             eps
@@ -213,12 +213,12 @@ pub fn show(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use farfield_client::frame_loop::LastCut;
+    use farfield_client::frame_loop::FrameState;
     use farfield_traverse::Budget;
 
     #[test]
     fn the_epsilon_control_sets_the_bound_image_caching_holds() {
-        let mut cut = LastCut::default();
+        let mut cut = FrameState::default();
         let mut s = Settings {
             epsilon_px: 4.0,
             ..Settings::default()
@@ -241,7 +241,7 @@ mod tests {
 
     #[test]
     fn the_plp_controls_set_the_frame_loops_budget() {
-        let mut cut = LastCut::default();
+        let mut cut = FrameState::default();
         let mut s = Settings {
             plp_budget_percent: 5.0,
             ..Settings::default()

@@ -33,7 +33,7 @@ use farfield_protocol::file::FileHeader;
 use serde::{Deserialize, Serialize};
 
 use crate::reference::Reference;
-use farfield_client::frame_loop::{LastCut, draw_frame};
+use farfield_client::frame_loop::{FrameState, draw_frame};
 use farfield_client::path::CameraPath;
 use farfield_client::render_job::Source;
 use farfield_client::viewer::Viewer;
@@ -141,7 +141,7 @@ struct ReferenceRenderer {
     /// The fixed settings' style (a kernel, a coverage).
     style: SplatStyle,
     viewer: Viewer,
-    cuts: LastCut,
+    cuts: FrameState,
     label: String,
 }
 
@@ -248,7 +248,7 @@ pub fn run(
         geometry,
         style,
         viewer: reference_viewer,
-        cuts: LastCut::default(),
+        cuts: FrameState::default(),
         label,
     };
     let cams = cameras(job, &header);

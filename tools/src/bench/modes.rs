@@ -12,7 +12,7 @@ use std::rc::Rc;
 use std::time::Instant;
 
 use anyhow::{Context, bail};
-use farfield_client::frame_loop::{LastCut, draw_frame};
+use farfield_client::frame_loop::{FrameState, draw_frame};
 use farfield_client::viewer::Viewer;
 use farfield_protocol::camera::Camera;
 use farfield_protocol::file::HierarchyKind;
@@ -42,7 +42,7 @@ pub enum Mode {
     /// A registered traversal kind (`spheres`, `cubes`, ...).
     Traversal {
         kind: &'static Registered,
-        cut: LastCut,
+        cut: FrameState,
     },
     /// Every triangle of the input, drawn once (the papers' "geometric time").
     Geometry { reference: Rc<Reference> },
@@ -66,7 +66,7 @@ impl Mode {
         };
         Ok(Self::Traversal {
             kind,
-            cut: LastCut::of_kind(kind),
+            cut: FrameState::of_kind(kind),
         })
     }
 
@@ -135,7 +135,7 @@ fn traversal_frame(
     camera: &Camera,
     threshold: f64,
     style: &SplatStyle,
-    cut: &mut LastCut,
+    cut: &mut FrameState,
 ) -> anyhow::Result<ModeFrame> {
     let mut rgba = Vec::new();
     let times = draw_frame(viewer, renderer, camera, threshold, style, cut, &mut rgba)?;

@@ -21,7 +21,7 @@ use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 use farfield_client::demo_link::DemoLink;
-use farfield_client::frame_loop::{LastCut, traverse_frame};
+use farfield_client::frame_loop::{FrameState, traverse_frame};
 use farfield_client::path::CameraPath;
 use farfield_client::viewer::Viewer;
 use farfield_net::queue::QueueTransport;
@@ -238,7 +238,7 @@ struct Client {
     started: Instant,
     /// Seconds into the path this client starts flying at.
     phase: f64,
-    cut: LastCut,
+    cut: FrameState,
     next_frame: Instant,
     /// When it began to fly (after the hold).
     flying_since: Option<Instant>,
@@ -261,7 +261,7 @@ impl Client {
         Self {
             started: now,
             phase,
-            cut: LastCut::default(),
+            cut: FrameState::default(),
             next_frame: now,
             flying_since: None,
             seen: NetStats::default(),
