@@ -15,7 +15,7 @@
 
 use glam::{DMat3, DVec3, Vec3};
 
-use crate::leaves::max_stretch;
+use crate::spheres::leaves::max_stretch;
 
 use crate::scene::{Primitives, Rgb8, Scene};
 use crate::zero_area::is_zero_area;

@@ -2,7 +2,7 @@
 //!
 //! Each format has its own module with one entry point `load(path) ->
 //! Result<Scene, ImportError>`; [`load_input`] picks one by extension, or by
-//! the `gen:NAME` prefix for the procedural [`generate`] scenes. After a
+//! the `gen:NAME` prefix for the procedural [`generate`](crate::generate) scenes. After a
 //! format parses, [`validate`] checks what every builder relies on (finite
 //! coordinates, indices in range, something to build), so no importer has to
 //! repeat those checks and no builder ever sees NaN.
@@ -10,7 +10,6 @@
 //! Importers produce scenes, never files: they know nothing of hierarchies.
 
 mod common;
-pub mod generate;
 mod las;
 mod obj;
 mod off;
@@ -83,7 +82,7 @@ impl ImportError {
 /// input of the same build).
 pub fn load_input(input: &str, params: &Params) -> Result<Scene, ImportError> {
     if let Some(name) = input.strip_prefix("gen:") {
-        let scene = generate::generate(name, params)?;
+        let scene = crate::generate::generate(name, params)?;
         validate(Path::new(input), &scene)?;
         return Ok(scene);
     }

@@ -6,9 +6,9 @@ use glam::{DVec3, Vec3};
 
 use super::*;
 use crate::cubes::{CubeOptions, build_cubes};
-use crate::leaves::{Leaf, LeafStats, cone_from_u8, make_leaves, unpack_normal};
 use crate::progress::Silent;
 use crate::scene::{Geometry, Primitives, Scene};
+use crate::spheres::leaves::{Leaf, LeafStats, cone_from_u8, make_leaves, unpack_normal};
 
 /// How far the far-off triangles lie from the grid: much farther than the
 /// grid is wide, as a stray face in a large scan spans much of the model.

@@ -12,7 +12,8 @@ use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
 use anyhow::Context;
-use farfield_builder::import::{Params, generate::DEFAULT_SCENE, load_input};
+use farfield_builder::generate::DEFAULT_SCENE;
+use farfield_builder::import::{Params, load_input};
 use farfield_builder::{BuildOptions, build_spheres};
 use farfield_store::{SceneFile, write_atomic};
 

@@ -8,8 +8,8 @@
 use std::path::Path;
 
 use anyhow::{Context, bail};
+use farfield_builder::generate::{GENERATORS, PathKey, camera_path};
 use farfield_builder::import::Params;
-use farfield_builder::import::generate::{GENERATORS, PathKey, camera_path};
 
 /// The keyframes of `input`'s path as a JSON list, one compact keyframe
 /// object per line (easy to read and to diff), or an error naming the

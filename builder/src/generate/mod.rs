@@ -56,7 +56,7 @@ pub use paths::{PathKey, camera_path};
 use std::fmt::Display;
 use std::str::FromStr;
 
-use super::{ImportError, Params};
+use crate::import::{ImportError, Params};
 use crate::scene::Scene;
 
 /// The scene built when no input is given.

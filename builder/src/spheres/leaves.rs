@@ -16,14 +16,14 @@
 //! the peak memory of a build near the leaves' own size.
 //!
 //! [`knn`]: super::knn
-//! [`zero_area`]: super::zero_area
+//! [`zero_area`]: crate::zero_area
 
 use glam::{DAffine3, DVec3, Vec3};
 use rayon::prelude::*;
 
 pub use farfield_protocol::octahedral::{pack_normal, unpack_normal};
 
-use super::progress::{Portion, Progress};
+use crate::progress::{Portion, Progress};
 use crate::scene::{Geometry, Primitives, Rgb8, Scene};
 use crate::zero_area::{face_with_area, zero_area};
 

@@ -24,7 +24,7 @@ mod parallel;
 pub use nodes::{InteriorNodes, SharedNodes};
 
 use super::leaves::{Leaf, acos_upper, cone_from_u8, cone_to_u8, pack_normal, unpack_normal};
-use super::progress::{Progress, Silent};
+use crate::progress::{Progress, Silent};
 
 /// Binary splits by bisection before falling back to median splits.
 pub const BISECT_DEPTH: u32 = 96;

@@ -466,7 +466,7 @@ fn shelf(m: &mut Mesh, rng: &mut Rng, at: DVec3, turned: bool, wood: Rgb8) {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::import::generate::shapes::closed_parts;
+    use crate::generate::shapes::closed_parts;
     use crate::scene::Primitives;
 
     fn params(grid: u32) -> CityParams {

@@ -20,8 +20,8 @@ use super::{
     Bounds, Interior, InteriorNodes, NodeRef, Summary, build_range, child_ranges,
     interior_capacity, parent_of,
 };
-use crate::leaves::Leaf;
 use crate::progress::Progress;
+use crate::spheres::leaves::Leaf;
 
 /// About this many ranges are built as tasks: enough for work stealing to
 /// even out ranges of unequal size on any thread count, few enough that the

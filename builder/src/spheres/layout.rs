@@ -16,9 +16,9 @@ use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 
 use super::leaves::{Leaf, cone_from_u8, unpack_normal};
-use super::progress::Progress;
 use super::tree::{NodeRef, SharedNodes, Tree};
 use crate::page_writer::PageWriter;
+use crate::progress::Progress;
 
 /// What `lay_out` needs besides the tree.
 #[derive(Debug, Clone, Copy)]

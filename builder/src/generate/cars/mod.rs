@@ -205,7 +205,7 @@ fn scaled(base: f64, detail: f64) -> u32 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::import::generate::shapes::closed_parts;
+    use crate::generate::shapes::closed_parts;
 
     fn bounds(m: &Mesh) -> (DVec3, DVec3) {
         m.positions

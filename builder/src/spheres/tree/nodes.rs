@@ -134,7 +134,7 @@ impl SharedNodes<'_> {
     /// Asks the CPU to start loading node `i` into the cache; a hint only,
     /// it reads nothing the caller can see.
     pub fn prefetch(&self, i: usize) {
-        crate::prefetch(self.slot(i));
+        crate::spheres::prefetch(self.slot(i));
     }
 
     /// A copy of node `i`.
@@ -167,7 +167,7 @@ impl SharedNodes<'_> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::tree::NodeRef;
+    use crate::spheres::tree::NodeRef;
     use glam::{DVec3, Vec3};
 
     fn node(tag: usize) -> Interior {
