@@ -87,10 +87,13 @@ pub fn builder_named(name: &str) -> Option<&'static KindBuilder> {
     BUILDERS.iter().find(|b| b.name() == name)
 }
 
-/// A kind's statistics as JSON (plain structs of numbers: they always
-/// serialize; a failure would leave the summary without them).
-fn stats_json(stats: impl serde::Serialize) -> serde_json::Value {
-    serde_json::to_value(stats).unwrap_or(serde_json::Value::Null)
+impl Built {
+    /// `stats` as JSON (plain structs of numbers: they always serialize; a
+    /// failure would leave the summary without them).
+    fn new(file: PagedFile, stats: impl serde::Serialize, nodes: u64) -> Self {
+        let stats = serde_json::to_value(stats).unwrap_or(serde_json::Value::Null);
+        Self { file, stats, nodes }
+    }
 }
 
 fn build_spheres_kind(
@@ -102,11 +105,7 @@ fn build_spheres_kind(
     options.page_bytes = settings.page_bytes.unwrap_or(options.page_bytes);
     let (file, stats) = build_spheres_reporting(scene, &options, progress)?;
     let nodes = stats.nodes;
-    Ok(Built {
-        file,
-        stats: stats_json(stats),
-        nodes,
-    })
+    Ok(Built::new(file, stats, nodes))
 }
 
 fn build_cubes_kind(
@@ -118,11 +117,7 @@ fn build_cubes_kind(
     options.page_bytes = settings.page_bytes.unwrap_or(options.page_bytes);
     let (file, stats) = build_cubes(scene, &options)?;
     let nodes = stats.nodes;
-    Ok(Built {
-        file,
-        stats: stats_json(stats),
-        nodes,
-    })
+    Ok(Built::new(file, stats, nodes))
 }
 
 fn build_plp_kind(
@@ -135,11 +130,7 @@ fn build_plp_kind(
     let (file, stats) = build_plp(&scene, &options)?;
     drop(scene);
     let nodes = file.header.nodes;
-    Ok(Built {
-        file,
-        stats: stats_json(stats),
-        nodes,
-    })
+    Ok(Built::new(file, stats, nodes))
 }
 
 fn build_bsp_kind(
@@ -150,11 +141,7 @@ fn build_bsp_kind(
     let (file, stats) = build_bsp(&scene, &settings.bsp)?;
     drop(scene);
     let nodes = file.header.nodes;
-    Ok(Built {
-        file,
-        stats: stats_json(stats),
-        nodes,
-    })
+    Ok(Built::new(file, stats, nodes))
 }
 
 #[cfg(test)]
