@@ -23,8 +23,8 @@ use glam::{DVec3, Vec3};
 use super::RenderOutput;
 use super::error_scope::ValidationScope;
 use super::instances::{DEFAULT_COLOR, snorm16};
+use super::pipeline::{PipelineSpec, color_target, depth_test};
 use super::renderer::Renderer;
-use super::target::{color_target, depth_test};
 use super::uniform::UniformBinding;
 use crate::bsp::{GpuInstance, INSTANCE_ATTRIBUTES, Instanced, PrototypeBuffers};
 
@@ -172,30 +172,18 @@ impl GeometryPipelines {
                     topology,
                     depth_write: bool,
                     blend: Option<wgpu::BlendState>| {
-            device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-                label: Some(label),
-                layout: Some(&layout),
-                vertex: wgpu::VertexState {
-                    module: &shader,
-                    entry_point: Some(vs),
-                    compilation_options: Default::default(),
-                    buffers: &[Some(buffer)],
-                },
-                primitive: wgpu::PrimitiveState {
-                    topology,
-                    ..Default::default()
-                },
-                depth_stencil: Some(depth_test(depth_write)),
-                multisample: Default::default(),
-                fragment: Some(wgpu::FragmentState {
-                    module: &shader,
-                    entry_point: Some(fs),
-                    compilation_options: Default::default(),
-                    targets: &[color_target(format, blend)],
-                }),
-                multiview_mask: None,
-                cache: None,
-            })
+            PipelineSpec {
+                label,
+                layout: &layout,
+                shader: &shader,
+                vertex_entry: vs,
+                fragment_entry: fs,
+                buffers: &[Some(buffer)],
+                topology,
+                depth: depth_test(depth_write),
+                targets: &[color_target(format, blend)],
+            }
+            .build(device)
         };
         let vertex_layout = || wgpu::VertexBufferLayout {
             array_stride: std::mem::size_of::<GpuVertex>() as u64,
@@ -207,27 +195,18 @@ impl GeometryPipelines {
             step_mode: wgpu::VertexStepMode::Instance,
             attributes: &INSTANCE_ATTRIBUTES,
         };
-        let instanced = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-            label: Some("farfield instanced triangles"),
-            layout: Some(&layout),
-            vertex: wgpu::VertexState {
-                module: &shader,
-                entry_point: Some("vs_instanced"),
-                compilation_options: Default::default(),
-                buffers: &[Some(vertex_layout()), Some(instance_layout)],
-            },
-            primitive: Default::default(),
-            depth_stencil: Some(depth_test(true)),
-            multisample: Default::default(),
-            fragment: Some(wgpu::FragmentState {
-                module: &shader,
-                entry_point: Some("fs_triangle"),
-                compilation_options: Default::default(),
-                targets: &[color_target(format, None)],
-            }),
-            multiview_mask: None,
-            cache: None,
-        });
+        let instanced = PipelineSpec {
+            label: "farfield instanced triangles",
+            layout: &layout,
+            shader: &shader,
+            vertex_entry: "vs_instanced",
+            fragment_entry: "fs_triangle",
+            buffers: &[Some(vertex_layout()), Some(instance_layout)],
+            topology: wgpu::PrimitiveTopology::TriangleList,
+            depth: depth_test(true),
+            targets: &[color_target(format, None)],
+        }
+        .build(device);
         let face_layout = || wgpu::VertexBufferLayout {
             array_stride: std::mem::size_of::<GpuFace>() as u64,
             step_mode: wgpu::VertexStepMode::Instance,

@@ -20,8 +20,9 @@ use super::GpuVertex;
 use super::adapter::Gpu;
 use super::error_scope::ValidationScope;
 use super::geometry::{GeometryUniform, WHOLE_VIEW, triangles_near_plane, upload};
+use super::pipeline::{PipelineSpec, color_target, depth_test};
 use super::renderer::Renderer;
-use super::target::{Target, color_target, depth_test};
+use super::target::Target;
 use super::uniform::UniformBinding;
 
 /// The item buffer's format: one id + 1 per pixel.
@@ -74,35 +75,23 @@ impl ItemBuffer {
             "farfield item buffer",
         );
         let attributes = wgpu::vertex_attr_array![0 => Float32x3, 1 => Uint32];
-        let pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-            label: Some("farfield item buffer"),
-            layout: Some(&layout),
-            vertex: wgpu::VertexState {
-                module: &shader,
-                entry_point: Some("vs_item"),
-                compilation_options: Default::default(),
-                buffers: &[Some(wgpu::VertexBufferLayout {
-                    array_stride: std::mem::size_of::<ItemVertex>() as u64,
-                    step_mode: wgpu::VertexStepMode::Vertex,
-                    attributes: &attributes,
-                })],
-            },
-            // The triangle pipeline's: a list, no culling.
-            primitive: wgpu::PrimitiveState {
-                topology: wgpu::PrimitiveTopology::TriangleList,
-                ..Default::default()
-            },
-            depth_stencil: Some(depth_test(true)),
-            multisample: Default::default(),
-            fragment: Some(wgpu::FragmentState {
-                module: &shader,
-                entry_point: Some("fs_item"),
-                compilation_options: Default::default(),
-                targets: &[color_target(ITEM_FORMAT, None)],
-            }),
-            multiview_mask: None,
-            cache: None,
-        });
+        // The triangle pipeline's shape: a list, no culling.
+        let pipeline = PipelineSpec {
+            label: "farfield item buffer",
+            layout: &layout,
+            shader: &shader,
+            vertex_entry: "vs_item",
+            fragment_entry: "fs_item",
+            buffers: &[Some(wgpu::VertexBufferLayout {
+                array_stride: std::mem::size_of::<ItemVertex>() as u64,
+                step_mode: wgpu::VertexStepMode::Vertex,
+                attributes: &attributes,
+            })],
+            topology: wgpu::PrimitiveTopology::TriangleList,
+            depth: depth_test(true),
+            targets: &[color_target(ITEM_FORMAT, None)],
+        }
+        .build(device);
         if let Some(e) = scope.pop() {
             bail!("creating the item buffer pipeline: {e}");
         }

@@ -11,7 +11,11 @@
 //! ([`Renderer::for_surface`]); it runs on a real GPU or on Mesa's CPU
 //! drivers (lavapipe, llvmpipe).
 //!
-//! - [`Renderer`]: the device, pipeline, instance buffers and frame.
+//! - [`Renderer`]: the device, the output, and each kind of draw data's
+//!   resources: splats (`splats`), triangles and cube faces (`geometry`),
+//!   instanced prototypes (`bsp`), PLP's triangles (`plp`), image caches
+//!   (`impostors`), the item buffer (`item_buffer`); `pipeline` makes their
+//!   pipelines.
 //! - [`SplatStyle`], [`Kernel`]: how splats look; [`RenderOutput`]: an image
 //!   with its upload and draw times.
 //! - [`Renderer::render_geometry`] ([`geometry`]): triangles and color-cube
@@ -29,8 +33,10 @@ mod impostors;
 mod instances;
 mod item_buffer;
 mod output;
+mod pipeline;
 mod plp;
 mod renderer;
+mod splats;
 mod target;
 #[cfg(test)]
 mod tests;
@@ -47,7 +53,8 @@ pub use geometry::{Coverage, GpuVertex, pack_leaves};
 pub use instances::DEFAULT_COLOR;
 pub use item_buffer::visible_ids;
 pub use plp::pack_plp;
-pub use renderer::{MIN_RADIUS_PX, Renderer};
+pub use renderer::Renderer;
+pub use splats::MIN_RADIUS_PX;
 
 /// The footprint of a splat with a normal.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]

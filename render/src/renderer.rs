@@ -1,54 +1,27 @@
-//! The headless splat renderer: one pipeline, growable instance buffers,
-//! one offscreen frame read back per call.
-
-use web_time::Instant;
+//! [`Renderer`]: the device, the output a frame goes to, and each kind of
+//! draw data's resources (splats made at once, the rest when first drawn).
+//! What each kind draws and how is in its own module (`splats`,
+//! `geometry`, `bsp`, `plp`, `impostors`, `item_buffer`).
 
 use anyhow::{Context, bail, ensure};
-use farfield_protocol::camera::{Camera, View};
+use farfield_protocol::camera::Camera;
 use farfield_traverse::spheres::Splat;
-use glam::{DVec3, Vec3};
 
 use super::adapter::{self, Gpu};
-use super::error_scope::ValidationScope;
 use super::geometry::GeometryPipelines;
-use super::instances::{self, GpuSplat, STRIDE};
 use super::output::{Output, SurfaceOutput};
-use super::target::{Target, color_target, depth_test};
-use super::uniform::UniformBinding;
-use super::{Kernel, RenderOutput, SplatStyle};
-
-/// Smallest radius a splat is drawn with, in pixels: a disc this large
-/// always covers a pixel center (the farthest a point can be from one is
-/// 1/sqrt(2) = 0.707 px), so sub-pixel splats leave no holes.
-pub const MIN_RADIUS_PX: f64 = 0.75;
-
-/// Largest single instance buffer: bigger splat lists are drawn in chunks.
-const MAX_CHUNK_BYTES: u64 = 128 << 20;
-
-/// The per-frame uniform block (see `splat.wgsl`).
-#[repr(C)]
-#[derive(Debug, Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
-struct FrameUniform {
-    proj: [f32; 4],
-    light_world: [f32; 4],
-    light_view: [f32; 4],
-    flags: [f32; 4],
-}
+use super::splats::SplatPipeline;
+use super::target::Target;
+use super::{RenderOutput, SplatStyle};
 
 /// Draws splats, triangles and cube faces into its [`Output`]: offscreen
 /// (read back after every frame) or a surface (presented, not read back).
 #[derive(Debug)]
 pub struct Renderer {
     gpu: Gpu,
-    pipeline: wgpu::RenderPipeline,
-    uniform: wgpu::Buffer,
-    bind_group: wgpu::BindGroup,
     output: Output,
-    /// Instance buffers, one per chunk, each with its capacity in splats.
-    chunks: Vec<(wgpu::Buffer, u64)>,
-    /// Splats per chunk: the most one buffer may hold.
-    chunk_splats: u64,
-    scratch: Vec<GpuSplat>,
+    /// The splat pipeline and its instance buffers.
+    splats: SplatPipeline,
     /// Triangle and cube-face pipelines, made when first needed.
     geometry: Option<GeometryPipelines>,
     /// A capture under way ([`Self::request_capture`]): set when mapped.
@@ -188,70 +161,18 @@ impl Renderer {
         })
     }
 
-    /// The pipelines for `output`'s format.
+    /// The splat pipeline for `output`'s format (the other kinds of draw
+    /// data are made when first drawn).
     fn with_output(gpu: Gpu, output: Output) -> anyhow::Result<Self> {
-        let device = &gpu.device;
-        let limits = device.limits();
-        let scope = ValidationScope::push(device);
-        let shader = device.create_shader_module(wgpu::include_wgsl!("splat.wgsl"));
-        let UniformBinding {
-            buffer: uniform,
-            bind_group,
-            pipeline_layout: layout,
-            ..
-        } = UniformBinding::new(
-            device,
-            std::mem::size_of::<FrameUniform>() as u64,
-            "farfield splats",
-        );
-        let attributes = wgpu::vertex_attr_array![
-            0 => Float32x3, 1 => Float32, 2 => Snorm16x4, 3 => Unorm8x4
-        ];
-        let pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-            label: Some("farfield splats"),
-            layout: Some(&layout),
-            vertex: wgpu::VertexState {
-                module: &shader,
-                entry_point: Some("vs_main"),
-                compilation_options: Default::default(),
-                buffers: &[Some(wgpu::VertexBufferLayout {
-                    array_stride: STRIDE,
-                    step_mode: wgpu::VertexStepMode::Instance,
-                    attributes: &attributes,
-                })],
-            },
-            primitive: wgpu::PrimitiveState {
-                topology: wgpu::PrimitiveTopology::TriangleStrip,
-                ..Default::default()
-            },
-            depth_stencil: Some(depth_test(true)),
-            multisample: Default::default(),
-            fragment: Some(wgpu::FragmentState {
-                module: &shader,
-                entry_point: Some("fs_main"),
-                compilation_options: Default::default(),
-                targets: &[color_target(output.format(), None)],
-            }),
-            multiview_mask: None,
-            cache: None,
-        });
-        if let Some(e) = scope.pop() {
-            bail!("creating the splat pipeline: {e}");
-        }
-        let chunk_splats = (limits.max_buffer_size.min(MAX_CHUNK_BYTES) / STRIDE).max(1);
+        let splats = SplatPipeline::new(&gpu.device, output.format())?;
         Ok(Self {
-            pipeline,
-            uniform,
-            bind_group,
+            gpu,
             output,
-            chunks: Vec::new(),
-            chunk_splats,
-            scratch: Vec::new(),
+            splats,
             geometry: None,
             capture: None,
             item_buffer: None,
             impostors: None,
-            gpu,
         })
     }
 
@@ -335,8 +256,7 @@ impl Renderer {
     /// Limits chunks to `splats` instances, to exercise chunked drawing.
     #[cfg(test)]
     pub(crate) fn set_chunk_splats(&mut self, splats: u64) {
-        self.chunk_splats = splats.max(1);
-        self.chunks.clear();
+        self.splats.set_chunk_splats(splats);
     }
 
     /// Draws the splats for this camera and returns tightly packed RGBA8
@@ -348,114 +268,9 @@ impl Renderer {
         splats: &[Splat],
         style: &SplatStyle,
     ) -> anyhow::Result<RenderOutput> {
-        let (width, height) = self.size_for(camera)?;
-        let scope = ValidationScope::push(&self.gpu.device);
-        let started = Instant::now();
-        // `near` here only clamps View's planes, which are not used.
-        let view = camera.view(1.0);
-        let near = instances::pack(&view, splats, &mut self.scratch);
-        self.gpu.queue.write_buffer(
-            &self.uniform,
-            0,
-            bytemuck::bytes_of(&frame_uniform(&view, near, style)),
-        );
-        let draws = self.upload();
-        let upload_ms = started.elapsed().as_secs_f64() * 1e3;
-
-        let started = Instant::now();
-        let frame = self.output.begin(&self.gpu.device)?;
-        let mut encoder = self
-            .gpu
-            .device
-            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
-                label: Some("farfield frame"),
-            });
-        {
-            let mut pass = frame.begin_pass(&mut encoder, "farfield splats", style.background);
-            pass.set_pipeline(&self.pipeline);
-            pass.set_bind_group(0, &self.bind_group, &[]);
-            for (chunk, count) in self.chunks.iter().zip(draws) {
-                pass.set_vertex_buffer(0, chunk.0.slice(..count * STRIDE));
-                pass.draw(0..4, 0..count as u32);
-            }
-        }
-        let rgba = self.output.finish(&self.gpu, frame, encoder)?;
-        let draw_ms = started.elapsed().as_secs_f64() * 1e3;
-        if let Some(e) = scope.pop() {
-            bail!("rendering {} splats: {e}", splats.len());
-        }
-        Ok(RenderOutput {
-            rgba,
-            width,
-            height,
-            upload_ms,
-            draw_ms,
-        })
-    }
-
-    /// Writes the packed splats into the chunk buffers (growing them to the
-    /// next power of two as needed) and returns the splat count per chunk.
-    fn upload(&mut self) -> Vec<u64> {
-        let device = &self.gpu.device;
-        let per_chunk = self.chunk_splats as usize;
-        let mut draws = Vec::new();
-        for (i, part) in self.scratch.chunks(per_chunk).enumerate() {
-            let count = part.len() as u64;
-            if self.chunks.get(i).is_none_or(|c| c.1 < count) {
-                let capacity = count.next_power_of_two().min(self.chunk_splats);
-                let buffer = device.create_buffer(&wgpu::BufferDescriptor {
-                    label: Some("farfield splats"),
-                    size: capacity * STRIDE,
-                    usage: wgpu::BufferUsages::VERTEX | wgpu::BufferUsages::COPY_DST,
-                    mapped_at_creation: false,
-                });
-                if i < self.chunks.len() {
-                    self.chunks[i] = (buffer, capacity);
-                } else {
-                    self.chunks.push((buffer, capacity));
-                }
-            }
-            self.gpu
-                .queue
-                .write_buffer(&self.chunks[i].0, 0, bytemuck::cast_slice(part));
-            draws.push(count);
-        }
-        draws
-    }
-}
-
-/// Projection, light directions and flags for one frame.
-fn frame_uniform(view: &View, near: f64, style: &SplatStyle) -> FrameUniform {
-    // A zero light direction becomes a headlight (toward the eye).
-    let light = style
-        .light_dir
-        .as_dvec3()
-        .try_normalize()
-        .unwrap_or(-view.forward);
-    let to_view = |v: DVec3| {
-        Vec3::new(
-            v.dot(view.right) as f32,
-            v.dot(view.up) as f32,
-            -v.dot(view.forward) as f32,
-        )
-    };
-    let l_view = to_view(light);
-    let l_world = light.as_vec3();
-    FrameUniform {
-        proj: [
-            (1.0 / view.tan_half_x) as f32,
-            (1.0 / view.tan_half_y) as f32,
-            near as f32,
-            (MIN_RADIUS_PX * 2.0 * view.tan_half_y / f64::from(view.height.max(1))) as f32,
-        ],
-        light_world: [l_world.x, l_world.y, l_world.z, 0.0],
-        light_view: [l_view.x, l_view.y, l_view.z, 0.0],
-        flags: [
-            f32::from(u8::from(style.kernel == Kernel::Round)),
-            f32::from(u8::from(style.two_sided)),
-            0.0,
-            0.0,
-        ],
+        self.size_for(camera)?;
+        self.splats
+            .draw(&self.gpu, &self.output, camera, splats, style)
     }
 }
 

@@ -15,29 +15,6 @@ pub(crate) const COLOR_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8U
 /// Depth format of the frame.
 pub(crate) const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
 
-/// Reversed-Z depth testing (nearer is greater), writing depth or not.
-pub(crate) fn depth_test(write: bool) -> wgpu::DepthStencilState {
-    wgpu::DepthStencilState {
-        format: DEPTH_FORMAT,
-        depth_write_enabled: Some(write),
-        depth_compare: Some(wgpu::CompareFunction::Greater),
-        stencil: Default::default(),
-        bias: Default::default(),
-    }
-}
-
-/// A color target of `format`, blended or not.
-pub(crate) fn color_target(
-    format: wgpu::TextureFormat,
-    blend: Option<wgpu::BlendState>,
-) -> Option<wgpu::ColorTargetState> {
-    Some(wgpu::ColorTargetState {
-        format,
-        blend,
-        write_mask: wgpu::ColorWrites::ALL,
-    })
-}
-
 /// Textures and readback buffer for one frame size.
 #[derive(Debug)]
 pub(crate) struct Target {

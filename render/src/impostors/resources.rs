@@ -8,7 +8,8 @@ use anyhow::{bail, ensure};
 use super::pack::GpuQuad;
 use crate::error_scope::ValidationScope;
 use crate::geometry::GeometryPipelines;
-use crate::target::{Target, color_target};
+use crate::pipeline::{PipelineSpec, color_target, depth_test};
+use crate::target::Target;
 
 /// The atlas, the scratch frame caches are drawn in, and the quad
 /// pipelines (plain, and outlined for a viewer that shows its caches).
@@ -122,44 +123,33 @@ impl ImpostorResources {
         let attributes = wgpu::vertex_attr_array![
             0 => Float32x3, 1 => Float32x3, 2 => Float32x3, 3 => Float32x3, 4 => Float32x4
         ];
+        // Quads are drawn over the frame in order, blended, and never hide
+        // one another: depth is neither tested nor written.
+        let no_depth_test = wgpu::DepthStencilState {
+            depth_write_enabled: Some(false),
+            depth_compare: Some(wgpu::CompareFunction::Always),
+            ..depth_test(false)
+        };
         let make_quad_pipeline = |fragment: &str| {
-            device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-                label: Some("farfield quads"),
-                layout: Some(&layout),
-                vertex: wgpu::VertexState {
-                    module: &shader,
-                    entry_point: Some("vs_quad"),
-                    compilation_options: Default::default(),
-                    buffers: &[Some(wgpu::VertexBufferLayout {
-                        array_stride: std::mem::size_of::<GpuQuad>() as u64,
-                        step_mode: wgpu::VertexStepMode::Instance,
-                        attributes: &attributes,
-                    })],
-                },
-                primitive: wgpu::PrimitiveState {
-                    topology: wgpu::PrimitiveTopology::TriangleStrip,
-                    ..Default::default()
-                },
-                depth_stencil: Some(wgpu::DepthStencilState {
-                    format: crate::target::DEPTH_FORMAT,
-                    depth_write_enabled: Some(false),
-                    depth_compare: Some(wgpu::CompareFunction::Always),
-                    stencil: Default::default(),
-                    bias: Default::default(),
-                }),
-                multisample: Default::default(),
-                fragment: Some(wgpu::FragmentState {
-                    module: &shader,
-                    entry_point: Some(fragment),
-                    compilation_options: Default::default(),
-                    targets: &[color_target(
-                        format,
-                        Some(wgpu::BlendState::PREMULTIPLIED_ALPHA_BLENDING),
-                    )],
-                }),
-                multiview_mask: None,
-                cache: None,
-            })
+            PipelineSpec {
+                label: "farfield quads",
+                layout: &layout,
+                shader: &shader,
+                vertex_entry: "vs_quad",
+                fragment_entry: fragment,
+                buffers: &[Some(wgpu::VertexBufferLayout {
+                    array_stride: std::mem::size_of::<GpuQuad>() as u64,
+                    step_mode: wgpu::VertexStepMode::Instance,
+                    attributes: &attributes,
+                })],
+                topology: wgpu::PrimitiveTopology::TriangleStrip,
+                depth: no_depth_test.clone(),
+                targets: &[color_target(
+                    format,
+                    Some(wgpu::BlendState::PREMULTIPLIED_ALPHA_BLENDING),
+                )],
+            }
+            .build(device)
         };
         let outlined_pipeline = make_quad_pipeline("fs_quad_outlined");
         let quad_pipeline = make_quad_pipeline("fs_quad");
