@@ -12,7 +12,7 @@ use glam::{DVec3, Vec3};
 use crate::FormatError;
 use crate::bsp_codec::{BspSkeleton, ContentPage};
 use crate::cube_codec::{self, Channels, CubeRecord, Payload};
-use crate::file::{FileHeader, HierarchyKind};
+use crate::file::FileHeader;
 use crate::page::{Page, PageHeader};
 use crate::plp_codec::{CellPage, Skeleton};
 use crate::sphere_codec::{self, NodeLayout, NodeRecord};
@@ -506,7 +506,7 @@ impl Hierarchy {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::file::{AttributeFlags, PageEntry};
+    use crate::file::{AttributeFlags, HierarchyKind, PageEntry};
     use crate::page::encode_page;
     use crate::sphere_codec::{ChildCount, identity_sphere_code};
 
