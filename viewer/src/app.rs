@@ -146,6 +146,14 @@ impl ViewerApp {
         options: AppOptions,
         platform: Box<dyn Platform>,
     ) -> anyhow::Result<Self> {
+        // A press held still for egui's click time (0.8 s) becomes a long
+        // press, a secondary click on a touch screen, and a finger that
+        // then moved dragged nothing: a slow frame (a phone, a loaded
+        // machine) made every touch drag one, and the camera never moved.
+        // The scene uses no long press, so a press stays a click until it
+        // moves and a drag once it does, however long it was held.
+        cc.egui_ctx
+            .options_mut(|o| o.input_options.max_click_duration = f64::INFINITY);
         let state = cc
             .wgpu_render_state
             .as_ref()

@@ -237,10 +237,13 @@ impl Browser {
     /// Fingers on a touch screen, each a path of CSS pixel points, moving
     /// together, lifted at the end.
     ///
-    /// Each stage lasts longer than a loaded machine's slowest frames (CI
-    /// saw 370 ms): a viewer sees a drag only when one frame finds the
-    /// fingers down and a later one finds them moved. Done in 200 ms, a
-    /// gesture fell inside one frame there and the camera never moved.
+    /// The fingers rest longer than egui's click time (0.8 s) before they
+    /// move, as a hesitant user's do and as every gesture did on CI, where
+    /// frames took 370 ms and each touch event waited for one: held that
+    /// long, a touch became a long press and its drag moved nothing (the
+    /// viewer now keeps a press a click until it moves). Each stage also
+    /// outlasts a slow frame, so the viewer sees the fingers down, then
+    /// moved.
     pub(crate) fn touch(&self, fingers: &[&[(i64, i64)]]) {
         let sources: Vec<Value> = fingers
             .iter()
