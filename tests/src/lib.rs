@@ -47,8 +47,15 @@ pub fn scratch(name: &str) -> PathBuf {
 /// See [`child_ran`] for checking that it ran.
 pub fn child_test(name: &str) -> std::process::Command {
     let mut command = std::process::Command::new(std::env::current_exe().expect("test binary"));
-    command.args([name, "--exact", "--ignored", "--nocapture"]);
+    command.args(child_test_args(name));
     command
+}
+
+/// The arguments that make a test binary run only its ignored test `name`,
+/// for a caller that starts the binary another way (inside a network
+/// namespace, say).
+pub fn child_test_args(name: &str) -> [&str; 4] {
+    [name, "--exact", "--ignored", "--nocapture"]
 }
 
 /// Whether a [`child_test`]'s output shows its entry point ran and passed:

@@ -374,12 +374,7 @@ impl ChildServer {
             }
         }
         let mut child = command
-            .args([
-                "serve::serve_cli_child",
-                "--exact",
-                "--ignored",
-                "--nocapture",
-            ])
+            .args(farfield_tests::child_test_args("serve::serve_cli_child"))
             .env("FARFIELD_SERVE_CHILD_DIR", scenes)
             .env("FARFIELD_SERVE_CHILD_ARGS", extra_args)
             .envs(envs.iter().map(|(k, v)| (k, v)))
