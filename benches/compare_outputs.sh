@@ -7,6 +7,9 @@
 # Usage: benches/compare_outputs.sh OLD_BIN_DIR NEW_BIN_DIR [DATA_DIR]
 #   (each BIN_DIR holds `farfield` and `farfield-server`, e.g. a copy of an
 #   older checkout's target/release and this one's).
+# Across a change of the file format (FORMATS=changed), the files cannot be
+# the same and the new client cannot read the old file: each client renders
+# its own build instead, and the files' sizes are listed side by side.
 set -u
 old=${1:?old binaries folder}; new=${2:?new binaries folder}
 data=${3:-${FARFIELD_DATA:-../shared/data}}
@@ -24,12 +27,16 @@ compare() {
     "$bin/farfield-server" build "$input" --kind $kind --out "$out/$name.$kind.$which.ff" --json >/dev/null ||
       { echo "$which build failed: $input $kind"; differ=$((differ + 1)); return; }
   done
-  if cmp -s "$out/$name.$kind.old.ff" "$out/$name.$kind.new.ff"; then same=$((same + 1)); else
+  local newfile=$out/$name.$kind.old.ff
+  if [ "${FORMATS:-same}" = changed ]; then
+    newfile=$out/$name.$kind.new.ff
+    echo "sizes: $input $kind: old $(stat -c %s "$out/$name.$kind.old.ff") new $(stat -c %s "$newfile") bytes"
+  elif cmp -s "$out/$name.$kind.old.ff" "$out/$name.$kind.new.ff"; then same=$((same + 1)); else
     differ=$((differ + 1)); echo "files differ: $input $kind"; fi
   for view in azimuth=30,elevation=25,distance=2.5 azimuth=200,elevation=10,distance=1.5; do
     png=$out/$name.$kind.$(echo $view | tr '=,' '__')
     "$old/farfield" render --file "$out/$name.$kind.old.ff" --orbit $view --size 320x240 --out "$png.old.png" >/dev/null
-    "$new/farfield" render --file "$out/$name.$kind.old.ff" --orbit $view --size 320x240 --out "$png.new.png" >/dev/null
+    "$new/farfield" render --file "$newfile" --orbit $view --size 320x240 --out "$png.new.png" >/dev/null
     if cmp -s "$png.old.png" "$png.new.png"; then same=$((same + 1)); else
       differ=$((differ + 1)); echo "renders differ: $name $kind $view"; fi
   done

@@ -11,47 +11,63 @@
 use farfield_protocol::file::{AttributeFlags, FileHeader, HierarchyKind, PageEntry, place_pages};
 use farfield_protocol::page::{PageHeader, encode_page_with_payload};
 use glam::DVec3;
+use rayon::prelude::*;
 
 use crate::PagedFile;
+
+/// Pages handed over but not yet encoded: compression is the slow part of
+/// writing a page (about 50 MB/s a core), so pages are encoded in batches
+/// on every core rather than one by one as they come.
+const ENCODE_BATCH: usize = 64;
 
 /// Pages in the order of their indices, with their directory entries.
 #[derive(Debug, Default)]
 pub struct PageWriter {
     entries: Vec<PageEntry>,
     pages: Vec<Vec<u8>>,
+    /// Each page's header, records and payload, in order after `pages`.
+    pending: Vec<(PageHeader, Vec<u8>, Vec<u8>)>,
 }
 
 impl PageWriter {
     /// Appends a page. `header.index` must be the number of pages so far.
     pub fn push(&mut self, header: &PageHeader, records: &[u8], payload: &[u8]) {
-        debug_assert_eq!(
-            header.index as usize,
-            self.pages.len(),
-            "pages out of order"
-        );
-        let (bytes, checksum) = encode_page_with_payload(header, records, payload);
-        self.entries
-            .push(PageEntry::of(header, bytes.len(), checksum));
-        self.pages.push(bytes);
+        debug_assert_eq!(header.index as usize, self.len(), "pages out of order");
+        self.pending
+            .push((*header, records.to_vec(), payload.to_vec()));
+        if self.pending.len() >= ENCODE_BATCH {
+            self.encode_pending();
+        }
+    }
+
+    fn encode_pending(&mut self) {
+        let encoded: Vec<_> = self
+            .pending
+            .par_drain(..)
+            .map(|(header, records, payload)| {
+                let (bytes, checksum) = encode_page_with_payload(&header, &records, &payload);
+                (PageEntry::of(&header, bytes.len(), checksum), bytes)
+            })
+            .collect();
+        for (entry, bytes) in encoded {
+            self.entries.push(entry);
+            self.pages.push(bytes);
+        }
     }
 
     /// Pages written so far.
     pub fn len(&self) -> usize {
-        self.pages.len()
+        self.pages.len() + self.pending.len()
     }
 
     pub fn is_empty(&self) -> bool {
-        self.pages.is_empty()
-    }
-
-    /// Page `index`'s bytes as written (header, records, payload, checksum).
-    pub fn page(&self, index: usize) -> Option<&[u8]> {
-        self.pages.get(index).map(Vec::as_slice)
+        self.len() == 0
     }
 
     /// The file: `header` (whose directory is ignored) with the directory
     /// of the pages written, placed right after the header.
-    pub fn finish(self, header: FileHeader) -> PagedFile {
+    pub fn finish(mut self, header: FileHeader) -> PagedFile {
+        self.encode_pending();
         let mut entries = self.entries;
         // Offsets are known once the page count, and so the header's
         // length, is.

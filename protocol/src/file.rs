@@ -13,7 +13,7 @@ use crate::FormatError;
 /// The eight bytes every farfield file starts with.
 pub const MAGIC: [u8; 8] = *b"FARFIELD";
 /// Bumped whenever a reader of the previous version would misread the bytes.
-pub const FORMAT_VERSION: u32 = 1;
+pub const FORMAT_VERSION: u32 = 2;
 /// Bytes of the fixed part of the header, before the directory.
 pub const FIXED_HEADER_BYTES: usize = 136;
 /// Bytes of one directory entry.
@@ -423,6 +423,23 @@ mod tests {
             level_max: 0,
             checksum: 0,
         }
+    }
+
+    /// A file of the uncompressed version 1 (pages without a codec byte)
+    /// is refused with advice, not misread.
+    #[test]
+    fn an_older_version_is_refused_with_advice_to_rebuild() {
+        let mut bytes = header(vec![page(180, 40, 0)]).encode();
+        bytes[8..12].copy_from_slice(&1u32.to_le_bytes());
+        let e = FileHeader::decode(&bytes).unwrap_err();
+        assert_eq!(
+            e,
+            FormatError::UnsupportedVersion {
+                found: 1,
+                supported: 2
+            }
+        );
+        assert!(e.to_string().contains("rebuild"), "{e}");
     }
 
     /// Found by the `header` fuzz target: a page whose offset plus length

@@ -205,8 +205,8 @@ impl Hierarchy {
             header: h,
             // Other kinds' records live decoded in their payload.
             records: if matches!(payload, PagePayload::Spheres) {
-                let mut r = Vec::with_capacity(page.records.len() + 8);
-                r.extend_from_slice(page.records);
+                let mut r = Vec::with_capacity(page.records().len() + 8);
+                r.extend_from_slice(page.records());
                 r.extend_from_slice(&[0; 8]);
                 r
             } else {
@@ -253,7 +253,7 @@ impl Hierarchy {
         let mut cubes = CubePage::default();
         let mut at = 0usize;
         for (i, bytes) in page
-            .records
+            .records()
             .chunks_exact(cube_codec::RECORD_BYTES)
             .enumerate()
         {
@@ -261,7 +261,7 @@ impl Hierarchy {
                 CubeRecord::unpack(bytes).ok_or_else(|| bad(format!("cell {i}: bad record")))?;
             let len = rec.payload_bytes as usize;
             let slice = page
-                .payload
+                .payload()
                 .get(at..at.saturating_add(len))
                 .ok_or_else(|| bad(format!("cell {i}: payload runs past the page")))?;
             at += len;
@@ -276,10 +276,10 @@ impl Hierarchy {
             }
             cubes.records.push(rec);
         }
-        if at != page.payload.len() {
+        if at != page.payload().len() {
             return Err(bad(format!(
                 "{} payload bytes belong to no cell",
-                page.payload.len() - at
+                page.payload().len() - at
             )));
         }
         Ok(cubes)
@@ -289,13 +289,16 @@ impl Hierarchy {
     /// 0), which must count every node after it; `what` names them.
     fn flat_root(&self, page: &Page, what: &str) -> Result<u32, FormatError> {
         let mut word = [0u8; 4];
-        let first = page.records.get(..4).ok_or_else(|| FormatError::BadPage {
-            page: page.header.index,
-            message: "no root".into(),
-        })?;
+        let first = page
+            .records()
+            .get(..4)
+            .ok_or_else(|| FormatError::BadPage {
+                page: page.header.index,
+                message: "no root".into(),
+            })?;
         word.copy_from_slice(first);
         let count = u32::from_le_bytes(word);
-        if u64::from(count) != self.header.leaves || page.records.get(4..8) != Some(&[0; 4]) {
+        if u64::from(count) != self.header.leaves || page.records().get(4..8) != Some(&[0; 4]) {
             return Err(FormatError::BadPage {
                 page: page.header.index,
                 message: format!(
@@ -318,11 +321,11 @@ impl Hierarchy {
         if page.header.index == 0 {
             let cells = self.flat_root(page, "cells")?;
             let skeleton =
-                Skeleton::decode(page.payload, self.header.root_center, self.header.leaves)
+                Skeleton::decode(page.payload(), self.header.root_center, self.header.leaves)
                     .map_err(|e| bad(format!("skeleton: {e}")))?;
             return Ok((vec![cells], PlpPage::Skeleton(Box::new(skeleton))));
         }
-        let cells = CellPage::decode(page.records, page.payload).map_err(bad)?;
+        let cells = CellPage::decode(page.records(), page.payload()).map_err(bad)?;
         Ok((
             vec![0; page.header.node_count as usize],
             PlpPage::Cells(cells),
@@ -340,11 +343,11 @@ impl Hierarchy {
         if page.header.index == 0 {
             let children = self.flat_root(page, "children")?;
             let skeleton =
-                BspSkeleton::decode(page.payload, self.header.root_center, self.header.leaves)
+                BspSkeleton::decode(page.payload(), self.header.root_center, self.header.leaves)
                     .map_err(|e| bad(format!("BSP tree: {e}")))?;
             return Ok((vec![children], BspPage::Skeleton(Box::new(skeleton))));
         }
-        let content = ContentPage::decode(page.records, page.payload).map_err(bad)?;
+        let content = ContentPage::decode(page.records(), page.payload()).map_err(bad)?;
         Ok((vec![0], BspPage::Content(content)))
     }
 

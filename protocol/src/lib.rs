@@ -39,6 +39,7 @@ pub mod kinds;
 pub mod messages;
 pub mod octahedral;
 pub mod page;
+pub mod page_codec;
 pub mod paged_file;
 pub mod percent;
 pub mod plp_codec;
@@ -51,7 +52,9 @@ pub mod sphere_codec;
 pub enum FormatError {
     #[error("not a farfield file (bad magic)")]
     BadMagic,
-    #[error("format version {found} is not supported (this build reads version {supported})")]
+    #[error(
+        "format version {found} is not supported (this build reads version {supported}): rebuild the scene from its inputs with `farfield-server build`"
+    )]
     UnsupportedVersion { found: u32, supported: u32 },
     #[error("{what} is truncated: need {needed} bytes, have {have}")]
     Truncated {

@@ -1,16 +1,23 @@
-//! One page: a header, whole sibling groups of node records, a checksum.
+//! One page: a header, whole sibling groups of node records (and a kind's
+//! payload), compressed ([`crate::page_codec`]), then a checksum.
 //!
 //! The bytes of a page on disk are the bytes on the wire, so the checksum
 //! travels with the page and the client verifies exactly what the builder
-//! wrote. A page that fails [`Page::parse`] is reported and never decoded.
+//! wrote; it covers the stored (compressed) bytes, so a damaged page is
+//! refused before anything is inflated. A page that fails [`Page::parse`]
+//! is reported and never decoded.
+
+use std::borrow::Cow;
 
 use crate::FormatError;
 use crate::file::Reader;
+use crate::page_codec::{self, PageCodec};
 
 /// The four bytes every page starts with.
 pub const PAGE_MAGIC: [u8; 4] = *b"FFPG";
-/// Bytes of [`PageHeader`] on disk.
-pub const PAGE_HEADER_BYTES: usize = 32;
+/// Bytes of a page's header on disk: [`PageHeader`], then the body's
+/// codec (one byte, three reserved) and its decoded length.
+pub const PAGE_HEADER_BYTES: usize = 40;
 /// Bytes of the trailing checksum.
 pub const PAGE_CHECKSUM_BYTES: usize = 4;
 
@@ -48,18 +55,31 @@ pub fn claimed_index(page: &[u8]) -> Option<u32> {
 }
 
 /// The one check of a page, for every reader (the client inserting what
-/// it received, the server and the store reading what they hold): page
-/// `index` of the file `header` describes exists, `bytes` agree with its
-/// directory entry (length and checksum, [`check_against_entry`]) and
-/// checksum themselves, parse as a page of the file's kind, and the page's
-/// header says what the directory says (its first node, node count and
-/// first child). What a kind's payload holds is checked where it is
+/// it received, the store's `inspect`): [`check_stored_page`], then the
+/// body decoded. What a kind's payload holds is checked where it is
 /// decoded.
 pub fn check_page<'a>(
     header: &crate::file::FileHeader,
     index: u32,
     bytes: &'a [u8],
 ) -> Result<Page<'a>, FormatError> {
+    check_stored_page(header, index, bytes)?.decode()
+}
+
+/// Everything [`check_page`] checks but the decoding of the body: page
+/// `index` of the file `header` describes exists, `bytes` agree with its
+/// directory entry (length and checksum, [`check_against_entry`]) and
+/// checksum themselves, have a page header of the file's kind whose body
+/// can hold its records, and say what the directory says (first node,
+/// node count, first child). The server stops here: the checksum, matched
+/// with the directory's, proves the bytes are what the builder wrote, and
+/// inflating every page it reads would only repeat what the client, which
+/// trusts no server, does anyway.
+pub fn check_stored_page<'a>(
+    header: &crate::file::FileHeader,
+    index: u32,
+    bytes: &'a [u8],
+) -> Result<StoredPage<'a>, FormatError> {
     let entry = *header
         .pages
         .get(index as usize)
@@ -68,11 +88,16 @@ pub fn check_page<'a>(
             message: format!("no such page ({} pages)", header.pages.len()),
         })?;
     check_against_entry(&entry, index, bytes)?;
-    let page = if header.kind.pages_carry_payload() {
-        Page::parse_with_payload(bytes, index, header.node_bytes)?
-    } else {
-        Page::parse(bytes, index, header.node_bytes)?
-    };
+    let page = StoredPage::parse(bytes, index, header.node_bytes)?;
+    if !header.kind.pages_carry_payload() && page.decoded_len as usize != page.record_bytes {
+        return Err(FormatError::BadPage {
+            page: index,
+            message: format!(
+                "{} body bytes do not hold {} nodes of {} bytes",
+                page.decoded_len, page.header.node_count, header.node_bytes
+            ),
+        });
+    }
     let h = page.header;
     if h.first_node != entry.first_node
         || h.node_count != entry.node_count
@@ -138,55 +163,51 @@ pub fn encode_page(header: &PageHeader, records: &[u8]) -> (Vec<u8>, u32) {
 }
 
 /// A page whose records are followed by a payload section (the color-cube
-/// octree's sub-cubes and leaf geometry, in node order).
+/// octree's sub-cubes and leaf geometry, in node order). The body is
+/// compressed when that makes it smaller ([`page_codec::encode_body`]).
 pub fn encode_page_with_payload(
     header: &PageHeader,
     records: &[u8],
     payload: &[u8],
 ) -> (Vec<u8>, u32) {
-    let mut out =
-        Vec::with_capacity(PAGE_HEADER_BYTES + records.len() + payload.len() + PAGE_CHECKSUM_BYTES);
+    // Records are fixed-size, so their size follows from the count.
+    let node_bytes = match header.node_count {
+        0 => 1,
+        n => records.len() / n as usize,
+    };
+    let (codec, body) = page_codec::encode_body(records, node_bytes, payload);
+    let decoded_len = u32::try_from(records.len() + payload.len())
+        .ok()
+        .filter(|&n| n <= page_codec::MAX_DECODED_BODY_BYTES)
+        .expect("a page body over the decoded-size limit (the builder bounds pages)");
+    let mut out = Vec::with_capacity(PAGE_HEADER_BYTES + body.len() + PAGE_CHECKSUM_BYTES);
     header.encode_into(&mut out);
-    out.extend_from_slice(records);
-    out.extend_from_slice(payload);
+    out.extend_from_slice(&[codec as u8, 0, 0, 0]);
+    out.extend_from_slice(&decoded_len.to_le_bytes());
+    out.extend_from_slice(&body);
     let crc = crc32fast::hash(&out);
     out.extend_from_slice(&crc.to_le_bytes());
     (out, crc)
 }
 
-/// A page whose checksum and header were verified; `records` are its nodes.
+/// A page whose checksum and header were verified, its body not yet
+/// decoded ([`StoredPage::decode`]).
 #[derive(Debug, Clone, Copy)]
-pub struct Page<'a> {
+pub struct StoredPage<'a> {
     pub header: PageHeader,
-    pub records: &'a [u8],
-    /// Bytes after the records: empty for spheres, cells' payloads for cubes.
-    pub payload: &'a [u8],
+    pub codec: PageCodec,
+    /// The body's length decoded, as the page states it.
+    pub decoded_len: u32,
+    /// The body as stored.
+    pub stored: &'a [u8],
+    record_bytes: usize,
+    node_bytes: usize,
 }
 
-impl<'a> Page<'a> {
-    /// Verifies and parses page `index` whose records are `node_bytes` each.
-    /// A page of records only (spheres).
+impl<'a> StoredPage<'a> {
+    /// Verifies page `index`'s checksum and parses its header; records are
+    /// `node_bytes` each. Nothing is inflated.
     pub fn parse(bytes: &'a [u8], index: u32, node_bytes: u32) -> Result<Self, FormatError> {
-        let page = Self::parse_with_payload(bytes, index, node_bytes)?;
-        if !page.payload.is_empty() {
-            return Err(FormatError::BadPage {
-                page: index,
-                message: format!(
-                    "{} record bytes do not hold {} nodes of {node_bytes} bytes",
-                    page.records.len() + page.payload.len(),
-                    page.header.node_count
-                ),
-            });
-        }
-        Ok(page)
-    }
-
-    /// A page whose records may be followed by a payload (cubes).
-    pub fn parse_with_payload(
-        bytes: &'a [u8],
-        index: u32,
-        node_bytes: u32,
-    ) -> Result<Self, FormatError> {
         let min = PAGE_HEADER_BYTES + PAGE_CHECKSUM_BYTES;
         if bytes.len() < min {
             return Err(FormatError::BadPage {
@@ -227,24 +248,125 @@ impl<'a> Page<'a> {
                 message: format!("page says it is page {}", header.index),
             });
         }
-        let rest = &body[PAGE_HEADER_BYTES..];
+        let codec = PageCodec::from_u8(r.u8()?, index)?;
+        if r.bytes(3)? != [0; 3] {
+            return Err(FormatError::BadPage {
+                page: index,
+                message: "reserved bytes are not zero".into(),
+            });
+        }
+        let decoded_len = r.u32()?;
+        let stored = &body[PAGE_HEADER_BYTES..];
         let record_bytes = u64::from(header.node_count) * u64::from(node_bytes);
-        if (rest.len() as u64) < record_bytes {
+        if u64::from(decoded_len) < record_bytes {
             return Err(FormatError::BadPage {
                 page: index,
                 message: format!(
-                    "{} record bytes do not hold {} nodes of {node_bytes} bytes",
-                    rest.len(),
+                    "{decoded_len} body bytes do not hold {} nodes of {node_bytes} bytes",
                     header.node_count
                 ),
             });
         }
-        let (records, payload) = rest.split_at(record_bytes as usize);
+        if decoded_len > page_codec::MAX_DECODED_BODY_BYTES
+            || (codec == PageCodec::Stored && stored.len() != decoded_len as usize)
+        {
+            return Err(FormatError::BadPage {
+                page: index,
+                message: format!(
+                    "{} stored body bytes cannot be {decoded_len} bytes decoded",
+                    stored.len()
+                ),
+            });
+        }
         Ok(Self {
             header,
-            records,
-            payload,
+            codec,
+            decoded_len,
+            stored,
+            record_bytes: record_bytes as usize,
+            node_bytes: node_bytes as usize,
         })
+    }
+
+    /// The body decoded, bounded by the length the page states.
+    pub fn decode(self) -> Result<Page<'a>, FormatError> {
+        let index = self.header.index;
+        let body = match self.codec {
+            PageCodec::Stored if self.stored.len() == self.decoded_len as usize => {
+                Cow::Borrowed(self.stored)
+            }
+            PageCodec::Stored => {
+                return Err(FormatError::BadPage {
+                    page: index,
+                    message: format!(
+                        "{} stored body bytes where it claims {}",
+                        self.stored.len(),
+                        self.decoded_len
+                    ),
+                });
+            }
+            PageCodec::PlanesDeflate => Cow::Owned(page_codec::decode_planes_deflate(
+                self.stored,
+                self.decoded_len,
+                self.record_bytes,
+                self.node_bytes,
+                index,
+            )?),
+        };
+        Ok(Page {
+            header: self.header,
+            body,
+            record_bytes: self.record_bytes,
+        })
+    }
+}
+
+/// A page whose checksum and header were verified and whose body was
+/// decoded: [`Page::records`] are its nodes.
+#[derive(Debug, Clone)]
+pub struct Page<'a> {
+    pub header: PageHeader,
+    /// Records then payload: borrowed from the page's bytes when stored
+    /// as is, owned when inflated.
+    body: Cow<'a, [u8]>,
+    record_bytes: usize,
+}
+
+impl<'a> Page<'a> {
+    /// The node records, `node_bytes` each.
+    pub fn records(&self) -> &[u8] {
+        &self.body[..self.record_bytes]
+    }
+
+    /// Bytes after the records: empty for spheres, cells' payloads for cubes.
+    pub fn payload(&self) -> &[u8] {
+        &self.body[self.record_bytes..]
+    }
+
+    /// Verifies and parses page `index` whose records are `node_bytes` each.
+    /// A page of records only (spheres).
+    pub fn parse(bytes: &'a [u8], index: u32, node_bytes: u32) -> Result<Self, FormatError> {
+        let page = Self::parse_with_payload(bytes, index, node_bytes)?;
+        if !page.payload().is_empty() {
+            return Err(FormatError::BadPage {
+                page: index,
+                message: format!(
+                    "{} record bytes do not hold {} nodes of {node_bytes} bytes",
+                    page.body.len(),
+                    page.header.node_count
+                ),
+            });
+        }
+        Ok(page)
+    }
+
+    /// A page whose records may be followed by a payload (cubes).
+    pub fn parse_with_payload(
+        bytes: &'a [u8],
+        index: u32,
+        node_bytes: u32,
+    ) -> Result<Self, FormatError> {
+        StoredPage::parse(bytes, index, node_bytes)?.decode()
     }
 
     /// The raw record of the `i`th node in the page, as a little-endian u64.
@@ -252,7 +374,7 @@ impl<'a> Page<'a> {
     pub fn record(&self, i: usize, node_bytes: usize) -> u64 {
         let start = i * node_bytes;
         let mut word = [0u8; 8];
-        word[..node_bytes].copy_from_slice(&self.records[start..start + node_bytes]);
+        word[..node_bytes].copy_from_slice(&self.records()[start..start + node_bytes]);
         u64::from_le_bytes(word)
     }
 }
@@ -295,6 +417,73 @@ mod tests {
                 "bit {bit} flip not caught"
             );
         }
+    }
+
+    /// A page of like records, which its encoder deflates.
+    fn compressed_sample() -> (Vec<u8>, Vec<u8>) {
+        let records: Vec<u8> = (0..4000u32).flat_map(|i| (i % 50).to_le_bytes()).collect();
+        let header = PageHeader {
+            index: 1,
+            first_node: 3,
+            first_child: 4003,
+            node_count: 4000,
+            level_min: 1,
+            level_max: 1,
+        };
+        (encode_page(&header, &records).0, records)
+    }
+
+    #[test]
+    fn compressed_pages_round_trip_and_are_smaller() {
+        let (bytes, records) = compressed_sample();
+        assert_eq!(bytes[32], PageCodec::PlanesDeflate as u8);
+        assert!(bytes.len() < records.len() / 4, "{} bytes", bytes.len());
+        let page = Page::parse(&bytes, 1, 4).unwrap();
+        assert_eq!(page.records(), &records[..]);
+        assert!(page.payload().is_empty());
+        assert_eq!(page.record(49, 4), 49);
+    }
+
+    /// What the checksum cannot catch, a page forged with a valid
+    /// checksum over a damaged stream or a false decoded length, is
+    /// refused by the decoder.
+    #[test]
+    fn a_forged_compressed_page_is_refused() {
+        let (bytes, _) = compressed_sample();
+        let reseal = |mut b: Vec<u8>| {
+            let n = b.len() - PAGE_CHECKSUM_BYTES;
+            let crc = crc32fast::hash(&b[..n]);
+            b[n..].copy_from_slice(&crc.to_le_bytes());
+            b
+        };
+        for at in [PAGE_HEADER_BYTES, PAGE_HEADER_BYTES + 5, bytes.len() - 6] {
+            for bit in 0..8 {
+                let mut bad = bytes.clone();
+                bad[at] ^= 1 << bit;
+                let bad = reseal(bad);
+                if let Ok(page) = Page::parse(&bad, 1, 4) {
+                    // A flip deflate cannot notice (a literal's value)
+                    // decodes to other records, never to more or fewer.
+                    assert_eq!(page.records().len(), 16_000);
+                }
+            }
+        }
+        for claim in [0u32, 15_999, 16_001, u32::MAX] {
+            let mut bad = bytes.clone();
+            bad[36..40].copy_from_slice(&claim.to_le_bytes());
+            assert!(Page::parse(&reseal(bad), 1, 4).is_err(), "claim {claim}");
+        }
+        let mut bad = bytes.clone();
+        bad[32] = 9;
+        let e = Page::parse(&reseal(bad), 1, 4).unwrap_err();
+        assert!(e.to_string().contains("codec 9"), "{e}");
+        let mut bad = bytes.clone();
+        bad[34] = 1;
+        assert!(Page::parse(&reseal(bad), 1, 4).is_err());
+        // Cut short, with its checksum fixed up.
+        let mut short = bytes[..bytes.len() - 20].to_vec();
+        short.extend_from_slice(&[0; 4]);
+        assert!(Page::parse(&reseal(short), 1, 4).is_err());
     }
 
     #[test]

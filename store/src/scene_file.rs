@@ -14,6 +14,7 @@ use std::path::{Path, PathBuf};
 use farfield_protocol::FormatError;
 use farfield_protocol::file::FileHeader;
 use farfield_protocol::hierarchy::Hierarchy;
+use farfield_protocol::page::check_page;
 
 use crate::StoreError;
 use crate::stamp::FileStamp;
@@ -116,13 +117,18 @@ impl SceneFile {
         self.read_page_into(index, &mut Vec::new())
     }
 
-    /// Indices of pages that fail verification, with the reason.
+    /// Indices of pages that fail verification, with the reason: every
+    /// check a client makes of a page's bytes (`check_page`), its body
+    /// inflated.
     pub fn corrupt_pages(&self) -> Vec<(usize, FormatError)> {
         let mut buffer = Vec::new();
         (0..self.header.pages.len())
             .filter_map(|i| {
                 buffer.clear();
-                self.read_page_into(i, &mut buffer).err().map(|e| (i, e))
+                self.read_page_into(i, &mut buffer)
+                    .and_then(|()| check_page(&self.header, i as u32, &buffer).map(|_| ()))
+                    .err()
+                    .map(|e| (i, e))
             })
             .collect()
     }

@@ -4,7 +4,7 @@
 
 use farfield_protocol::FormatError;
 use farfield_protocol::file::{FileHeader, PageEntry};
-use farfield_protocol::page::check_page;
+use farfield_protocol::page::check_stored_page;
 
 /// How much of a scene is read first to find its header's length.
 pub const HEADER_PROBE_BYTES: u64 = 64 << 10;
@@ -64,9 +64,10 @@ pub fn page_entry(header: &FileHeader, index: usize) -> Result<PageEntry, Format
 }
 
 /// Checks `bytes`, read for page `index` of the scene `header` describes,
-/// as the client will check them ([`check_page`]: its length, its checksum
-/// and the directory's copy of it, its page header, and its agreement with
-/// the directory). A read that came back short is a truncated page.
+/// as the client will check them, less the inflating of the body
+/// ([`check_stored_page`]: its length, its checksum and the directory's
+/// copy of it, its page header, and its agreement with the directory). A
+/// read that came back short is a truncated page.
 pub fn verify_page(header: &FileHeader, index: usize, bytes: &[u8]) -> Result<(), FormatError> {
     let entry = page_entry(header, index)?;
     if bytes.len() != entry.length as usize {
@@ -76,5 +77,5 @@ pub fn verify_page(header: &FileHeader, index: usize, bytes: &[u8]) -> Result<()
             have: bytes.len() as u64,
         });
     }
-    check_page(header, index as u32, bytes).map(|_| ())
+    check_stored_page(header, index as u32, bytes).map(|_| ())
 }

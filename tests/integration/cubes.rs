@@ -542,7 +542,7 @@ fn corrupt_cube_pages_are_refused() {
     // Re-encode page 0 with one triangle index out of range and a fresh CRC.
     let page = &file.pages[0];
     let parsed = farfield_protocol::page::Page::parse_with_payload(page, 0, 32).unwrap();
-    let (records, mut payload) = (parsed.records.to_vec(), parsed.payload.to_vec());
+    let (records, mut payload) = (parsed.records().to_vec(), parsed.payload().to_vec());
     // The first leaf with geometry: its payload starts after the sub-cubes
     // and payloads of the cells before it.
     let mut at = 0usize;

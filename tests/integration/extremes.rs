@@ -47,7 +47,7 @@ fn transformed(g: &Geometry, t: DAffine3) -> Scene {
 }
 
 /// Decoded nodes of a scene, relative to the root's center and in units of
-/// the root radius.
+/// the root radius, and each page's records.
 fn relative_tree(scene: Scene) -> (Vec<DecodedNode>, Vec<Vec<u8>>) {
     let file = build(scene);
     let mut nodes = resident(&file).decode_all();
@@ -56,7 +56,20 @@ fn relative_tree(scene: Scene) -> (Vec<DecodedNode>, Vec<Vec<u8>>) {
         n.center = (n.center - c) / r;
         n.radius /= r;
     }
-    (nodes, file.pages)
+    // The records decoded: compressed pages differ from the first
+    // differing record on.
+    let records = file
+        .pages
+        .iter()
+        .enumerate()
+        .map(|(i, page)| {
+            farfield_protocol::page::Page::parse(page, i as u32, file.header.node_bytes)
+                .expect("a built page")
+                .records()
+                .to_vec()
+        })
+        .collect();
+    (nodes, records)
 }
 
 /// The same geometry under a translation or uniform scale gives the same

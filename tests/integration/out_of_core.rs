@@ -30,7 +30,8 @@ fn a_scene_over_the_memory_limit_serves_load_clients_with_no_errors() {
     let scenes = dir.join("scenes");
     std::fs::create_dir_all(&scenes).unwrap();
     let mut params = Params::default();
-    params.set("trees", 150);
+    // 40 MB of compressed pages (55 MB before pages were compressed).
+    params.set("trees", 220);
     let (file, _) = build_spheres(
         load_input("gen:island", &params).unwrap(),
         &BuildOptions::default(),

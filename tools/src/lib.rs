@@ -26,6 +26,7 @@
 
 pub mod bench;
 pub mod bench_build;
+pub mod bench_codecs;
 pub mod bench_cubes;
 pub mod bench_plp;
 pub mod bench_stream;

@@ -555,12 +555,11 @@ impl PageCutter {
             ..page
         };
         let tail_records = self.records.split_off(self.page0_level_end);
-        self.page = Some(head);
-        self.flush();
         // The rest of the open page becomes the start of page 1. Its first
         // child is found by walking the child counts of page 0's records.
-        let page0 = self.written.page(0).expect("page 0 was just written");
-        let first_child = page0_next_child(page0, head, self.node_bytes);
+        let first_child = page0_next_child(&self.records, head, self.node_bytes);
+        self.page = Some(head);
+        self.flush();
         self.records = tail_records;
         self.page = Some(PageHeader {
             index: 1,
@@ -590,8 +589,7 @@ impl PageCutter {
 }
 
 /// The breadth-first index of the first child of the node after page 0.
-fn page0_next_child(page0: &[u8], header: PageHeader, node_bytes: usize) -> u64 {
-    let records = &page0[PAGE_HEADER_BYTES..page0.len() - PAGE_CHECKSUM_BYTES];
+fn page0_next_child(records: &[u8], header: PageHeader, node_bytes: usize) -> u64 {
     let mut next = header.first_child;
     for chunk in records.chunks_exact(node_bytes) {
         let mut word = [0u8; 8];

@@ -589,16 +589,16 @@ fn file_seeds(out: &mut Out, name: &str, file: &PagedFile) {
     let page = Page::parse_with_payload(&file.pages[0], 0, h.node_bytes).unwrap();
     if !cubes {
         let mut seed = vec![flags, 0];
-        seed.extend_from_slice(page.records);
+        seed.extend_from_slice(page.records());
         out.seed("node", name, &seed);
         return;
     }
     let mut at = 0usize;
     let mut kept = 0;
-    for (i, record) in page.records.chunks_exact(RECORD_BYTES).enumerate() {
+    for (i, record) in page.records().chunks_exact(RECORD_BYTES).enumerate() {
         let cell = CubeRecord::unpack(record).unwrap();
         let len = cell.payload_bytes as usize;
-        let payload = &page.payload[at..at + len];
+        let payload = &page.payload()[at..at + len];
         at += len;
         if len == 0 && i > 0 || kept >= 3 {
             continue;

@@ -364,6 +364,15 @@ pub enum BenchCommand {
         #[arg(long)]
         json: bool,
     },
+    /// Store built files' pages with each candidate page codec on one core: ratio, bytes per input, median encode and decode rates.
+    Codecs {
+        #[arg(required = true)]
+        files: Vec<PathBuf>,
+        #[arg(long, default_value_t = 5)]
+        repeats: usize,
+        #[arg(long)]
+        json: bool,
+    },
     /// Traverse a whole file at a 1-pixel threshold on one core; median nodes per second.
     Traverse {
         file: PathBuf,
@@ -398,6 +407,11 @@ pub fn run(cli: Cli) -> anyhow::Result<Report> {
             farfield_tools::bench_build::build(&inputs, &params, repeats)?,
             json,
         ),
+        Command::Bench(BenchCommand::Codecs {
+            files,
+            repeats,
+            json,
+        }) => measured(farfield_tools::bench_codecs::codecs(&files, repeats)?, json),
         Command::Bench(BenchCommand::Traverse {
             file,
             repeats,
