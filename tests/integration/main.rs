@@ -30,6 +30,7 @@ mod s3;
 pub(crate) mod serve;
 mod streaming;
 mod surface;
+mod tiles;
 mod tls;
 mod traversal;
 mod viewer;

@@ -30,6 +30,7 @@ pub mod bench_codecs;
 pub mod bench_cubes;
 pub mod bench_plp;
 pub mod bench_stream;
+pub mod lidar_tiles;
 pub mod loadtest;
 pub mod meters;
 pub mod reference;

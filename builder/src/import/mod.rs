@@ -110,13 +110,54 @@ pub fn load_input(input: &str, params: &Params) -> Result<Scene, ImportError> {
 }
 
 /// Loads every input and merges them into one scene (a build of several
-/// files, or a tool's reference of the same inputs).
+/// files, or a tool's reference of the same inputs). A folder stands for
+/// the files in it of the formats read here, in name order: a survey's
+/// tiles as delivered.
 pub fn load_inputs(inputs: &[String], params: &Params) -> Result<Scene, ImportError> {
     let mut scene = Scene::default();
-    for input in inputs {
-        scene.merge(load_input(input, params)?);
+    for input in expand_folders(inputs)? {
+        scene.merge(load_input(&input, params)?);
     }
     Ok(scene)
+}
+
+/// Extensions [`load_input`] reads.
+const READABLE: [&str; 7] = ["obj", "ply", "off", "las", "laz", "pdb", "ent"];
+
+/// `inputs` with each folder replaced by its readable files, sorted; a
+/// folder with none is an error (a wrong folder must not build nothing).
+pub fn expand_folders(inputs: &[String]) -> Result<Vec<String>, ImportError> {
+    let mut out = Vec::new();
+    for input in inputs {
+        let path = Path::new(input);
+        if !path.is_dir() {
+            out.push(input.clone());
+            continue;
+        }
+        let io = |error| ImportError::Io {
+            path: path.to_owned(),
+            error,
+        };
+        let mut files = Vec::new();
+        for entry in std::fs::read_dir(path).map_err(io)? {
+            let file = entry.map_err(io)?.path();
+            let readable = file
+                .extension()
+                .and_then(|e| e.to_str())
+                .is_some_and(|e| READABLE.contains(&e.to_ascii_lowercase().as_str()));
+            if readable && file.is_file() {
+                files.push(file.to_string_lossy().into_owned());
+            }
+        }
+        if files.is_empty() {
+            return Err(ImportError::Empty {
+                path: path.to_owned(),
+            });
+        }
+        files.sort();
+        out.extend(files);
+    }
+    Ok(out)
 }
 
 /// Largest coordinate (and sphere radius) a scene may have, in either

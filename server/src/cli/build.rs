@@ -141,6 +141,10 @@ pub fn run(args: &BuildArgs) -> anyhow::Result<Report> {
         "kind": kind,
         "file_bytes": bytes,
         "bytes_per_node": bytes as f64 / nodes as f64,
+        // Points, vertices or atoms read: bytes a point is how lidar
+        // tools compare their files.
+        "input_vertices": h.input_vertices,
+        "bytes_per_input": bytes as f64 / h.input_vertices.max(1) as f64,
         "seconds": seconds,
         "seconds_import": seconds_import,
         "seconds_build": seconds_build,

@@ -8,6 +8,7 @@ mod cert;
 mod export;
 mod health;
 mod inspect;
+mod lidar_tiles;
 mod publish;
 mod serve;
 
@@ -55,6 +56,24 @@ pub enum Command {
     /// client takes with `--ca-cert DIR/cert.pem` and a browser after an
     /// exception.
     Cert(CertArgs),
+    /// Write generated lidar for benchmarks: a terrain of `--points`
+    /// random points with RGB and intensity, as a `--grid` x `--grid`
+    /// square of LAS tiles in `--out`, each with its own offset (as surveys
+    /// are delivered). Deterministic for a seed; memory does not grow with
+    /// the point count.
+    LidarTiles(LidarTilesArgs),
+}
+
+#[derive(Debug, clap::Args)]
+pub struct LidarTilesArgs {
+    #[arg(long)]
+    pub points: u64,
+    #[arg(long, default_value_t = 1)]
+    pub grid: u32,
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    #[arg(long)]
+    pub out: PathBuf,
 }
 
 #[derive(Debug, clap::Args)]
@@ -156,7 +175,7 @@ pub struct ExportArgs {
 
 #[derive(Debug, clap::Args)]
 pub struct BuildArgs {
-    /// Input files (.obj .ply .off .las .laz .pdb) or generated scenes (gen:island, gen:tree).
+    /// Input files (.obj .ply .off .las .laz .pdb), folders of them (a survey's tiles), or generated scenes (gen:island, gen:tree).
     #[arg(required = true)]
     pub inputs: Vec<String>,
     /// The file to write (written to a temporary file, then renamed), or
@@ -425,6 +444,7 @@ pub fn run(cli: Cli) -> anyhow::Result<Report> {
         Command::Publish(args) => publish::run(&args),
         Command::Health(args) => health::run(&args),
         Command::Cert(args) => cert::run(&args),
+        Command::LidarTiles(args) => lidar_tiles::run(&args),
     }
 }
 
