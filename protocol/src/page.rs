@@ -343,6 +343,11 @@ impl<'a> Page<'a> {
         &self.body[self.record_bytes..]
     }
 
+    /// Whether the body was stored compressed (and so inflated here).
+    pub fn body_is_inflated(&self) -> bool {
+        matches!(self.body, Cow::Owned(_))
+    }
+
     /// Verifies and parses page `index` whose records are `node_bytes` each.
     /// A page of records only (spheres).
     pub fn parse(bytes: &'a [u8], index: u32, node_bytes: u32) -> Result<Self, FormatError> {

@@ -22,7 +22,7 @@ mod source;
 mod stamp;
 pub mod verify;
 pub use histogram::{Histogram, RemoteStats};
-pub use scene_file::SceneFile;
+pub use scene_file::{PageSurvey, SceneFile};
 pub use source::{PageError, PageSource, read_each};
 pub use stamp::{FileStamp, ObjectStamp, Stamp};
 

@@ -14,7 +14,7 @@ use std::path::{Path, PathBuf};
 use farfield_protocol::FormatError;
 use farfield_protocol::file::FileHeader;
 use farfield_protocol::hierarchy::Hierarchy;
-use farfield_protocol::page::check_page;
+use farfield_protocol::page::{PAGE_CHECKSUM_BYTES, PAGE_HEADER_BYTES, check_page};
 
 use crate::StoreError;
 use crate::stamp::FileStamp;
@@ -121,16 +121,31 @@ impl SceneFile {
     /// check a client makes of a page's bytes (`check_page`), its body
     /// inflated.
     pub fn corrupt_pages(&self) -> Vec<(usize, FormatError)> {
+        self.survey_pages().corrupt
+    }
+
+    /// Every page read and checked as a client would (`check_page`): the
+    /// ones that fail, and how the others are stored.
+    pub fn survey_pages(&self) -> PageSurvey {
+        let mut survey = PageSurvey::default();
         let mut buffer = Vec::new();
-        (0..self.header.pages.len())
-            .filter_map(|i| {
-                buffer.clear();
-                self.read_page_into(i, &mut buffer)
-                    .and_then(|()| check_page(&self.header, i as u32, &buffer).map(|_| ()))
-                    .err()
-                    .map(|e| (i, e))
-            })
-            .collect()
+        for i in 0..self.header.pages.len() {
+            buffer.clear();
+            let checked = self
+                .read_page_into(i, &mut buffer)
+                .and_then(|()| check_page(&self.header, i as u32, &buffer));
+            match checked {
+                Ok(page) => {
+                    let decoded = page.records().len() + page.payload().len();
+                    survey.decoded_bytes += decoded as u64;
+                    survey.stored_bytes +=
+                        (buffer.len() - PAGE_HEADER_BYTES - PAGE_CHECKSUM_BYTES) as u64;
+                    survey.compressed += usize::from(page.body_is_inflated());
+                }
+                Err(e) => survey.corrupt.push((i, e)),
+            }
+        }
+        survey
     }
 
     /// Bytes of the whole file when it was opened.
@@ -175,4 +190,16 @@ fn read_exact_at(file: &File, mut buf: &mut [u8], mut offset: u64) -> std::io::R
         }
     }
     Ok(())
+}
+
+/// What [`SceneFile::survey_pages`] found.
+#[derive(Debug, Default)]
+pub struct PageSurvey {
+    /// Pages that fail a check, with the reason.
+    pub corrupt: Vec<(usize, FormatError)>,
+    /// Sound pages stored compressed.
+    pub compressed: usize,
+    /// Bodies of the sound pages as stored, and decoded.
+    pub stored_bytes: u64,
+    pub decoded_bytes: u64,
 }

@@ -173,6 +173,19 @@ fn a_flipped_bit_in_any_page_is_reported_by_inspect() {
     let report = cli(&["inspect", path.to_str().unwrap(), "--json"]).unwrap();
     assert_eq!(report.json["corrupt_pages"], 0);
     assert_eq!(report.exit_code, 0);
+    // How the pages are stored, counted from the file's own bytes.
+    let pages = scene.header.pages.len();
+    let header_bytes = scene.header.pages[0].offset;
+    assert_eq!(report.json["header_bytes"], header_bytes);
+    let stored: u64 = file.pages.iter().map(|p| p.len() as u64 - 44).sum();
+    assert_eq!(report.json["page_body_bytes_stored"], stored);
+    let decoded = report.json["page_body_bytes_decoded"].as_u64().unwrap();
+    let compressed = report.json["compressed_pages"].as_u64().unwrap() as usize;
+    assert!(
+        decoded > stored && compressed > pages / 2 && compressed <= pages,
+        "{}",
+        report.json
+    );
     let original = std::fs::read(&path).unwrap();
     for (i, entry) in scene.header.pages.iter().enumerate() {
         // A different bit in each page: header, records and checksum bytes.

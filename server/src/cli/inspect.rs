@@ -8,7 +8,8 @@ use farfield_store::SceneFile;
 pub fn run(args: &InspectArgs) -> anyhow::Result<Report> {
     let file = SceneFile::open(&args.file)?;
     let h = &file.header;
-    let corrupt = file.corrupt_pages();
+    let survey = file.survey_pages();
+    let corrupt = &survey.corrupt;
     let first_page_nodes = h.pages.first().map_or(0, |p| p.node_count);
     let json = json!({
         "file": args.file,
@@ -22,6 +23,13 @@ pub fn run(args: &InspectArgs) -> anyhow::Result<Report> {
         "has_normals": h.attributes.normals,
         "node_bytes": h.node_bytes,
         "pages": h.pages.len(),
+        // What a client reads before any page: the header, directory
+        // included.
+        "header_bytes": file.header_bytes().len(),
+        "compressed_pages": survey.compressed,
+        "page_body_bytes_stored": survey.stored_bytes,
+        "page_body_bytes_decoded": survey.decoded_bytes,
+        "bytes_per_input": file.len() as f64 / h.input_vertices.max(1) as f64,
         "page_bytes_max": h.pages.iter().map(|p| p.length).max().unwrap_or(0),
         "first_page_nodes": first_page_nodes,
         "first_page_levels": h.pages.first().map_or(0, |p| u32::from(p.level_max) + 1),
@@ -47,7 +55,17 @@ pub fn run(args: &InspectArgs) -> anyhow::Result<Report> {
         file.len(),
         file.len() as f64 / h.nodes as f64
     );
-    for (i, e) in &corrupt {
+    if survey.decoded_bytes > 0 {
+        text.push_str(&format!(
+            "; {} of {} compressed, bodies {} bytes stored for {} decoded ({:.2}x)",
+            survey.compressed,
+            counted(h.pages.len() as u64, "page", "pages"),
+            survey.stored_bytes,
+            survey.decoded_bytes,
+            survey.decoded_bytes as f64 / survey.stored_bytes.max(1) as f64
+        ));
+    }
+    for (i, e) in corrupt {
         text.push_str(&format!("\ncorrupt page {i}: {e}"));
     }
     Ok(Report {
