@@ -34,6 +34,9 @@ if [ -z "$potree" ]; then
   fi
   potree=$src/build/PotreeConverter
 fi
+for tool in /usr/bin/time bc; do
+  command -v $tool >/dev/null 2>&1 || { echo "needs $tool (apt-get install time bc)" >&2; exit 1; }
+done
 [ -x "$bin/farfield-server" ] || { echo "no $bin/farfield-server: cargo build --release -p farfield-server" >&2; exit 1; }
 
 # Runs a command; prints "wall_seconds peak_MiB".

@@ -43,6 +43,9 @@ pub enum BuildError {
     TooLarge(u64),
     #[error("{0}")]
     Invalid(String),
+    /// A page the format cannot hold (a body over its size limit).
+    #[error(transparent)]
+    Format(#[from] farfield_protocol::FormatError),
 }
 
 /// The triangles of a `side` x `side` grid of vertices numbered row by row,

@@ -8,6 +8,7 @@
 //! themselves through [`PageWriter`], and the two-level "skeleton first"
 //! shape PLP and image caching share, written by [`SkeletonFirst`].
 
+use farfield_protocol::FormatError;
 use farfield_protocol::file::{AttributeFlags, FileHeader, HierarchyKind, PageEntry, place_pages};
 use farfield_protocol::page::{PageHeader, encode_page_with_payload};
 use glam::DVec3;
@@ -27,6 +28,11 @@ pub struct PageWriter {
     pages: Vec<Vec<u8>>,
     /// Each page's header, records and payload, in order after `pages`.
     pending: Vec<(PageHeader, Vec<u8>, Vec<u8>)>,
+    /// The first page that could not be encoded (a body over the format's
+    /// limit): [`PageWriter::finish`] reports it, so builders push pages
+    /// without checking each.
+    error: Option<FormatError>,
+    pushed: usize,
 }
 
 impl PageWriter {
@@ -35,6 +41,7 @@ impl PageWriter {
         debug_assert_eq!(header.index as usize, self.len(), "pages out of order");
         self.pending
             .push((*header, records.to_vec(), payload.to_vec()));
+        self.pushed += 1;
         if self.pending.len() >= ENCODE_BATCH {
             self.encode_pending();
         }
@@ -45,19 +52,26 @@ impl PageWriter {
             .pending
             .par_drain(..)
             .map(|(header, records, payload)| {
-                let (bytes, checksum) = encode_page_with_payload(&header, &records, &payload);
-                (PageEntry::of(&header, bytes.len(), checksum), bytes)
+                let (bytes, checksum) = encode_page_with_payload(&header, &records, &payload)?;
+                Ok((PageEntry::of(&header, bytes.len(), checksum), bytes))
             })
             .collect();
-        for (entry, bytes) in encoded {
-            self.entries.push(entry);
-            self.pages.push(bytes);
+        for page in encoded {
+            match page {
+                Ok((entry, bytes)) => {
+                    self.entries.push(entry);
+                    self.pages.push(bytes);
+                }
+                Err(e) => {
+                    self.error.get_or_insert(e);
+                }
+            }
         }
     }
 
-    /// Pages written so far.
+    /// Pages pushed so far.
     pub fn len(&self) -> usize {
-        self.pages.len() + self.pending.len()
+        self.pushed
     }
 
     pub fn is_empty(&self) -> bool {
@@ -65,21 +79,25 @@ impl PageWriter {
     }
 
     /// The file: `header` (whose directory is ignored) with the directory
-    /// of the pages written, placed right after the header.
-    pub fn finish(mut self, header: FileHeader) -> PagedFile {
+    /// of the pages written, placed right after the header; or why a page
+    /// could not be written.
+    pub fn finish(mut self, header: FileHeader) -> Result<PagedFile, FormatError> {
         self.encode_pending();
+        if let Some(e) = self.error {
+            return Err(e);
+        }
         let mut entries = self.entries;
         // Offsets are known once the page count, and so the header's
         // length, is.
         place_pages(&mut entries);
-        PagedFile {
+        Ok(PagedFile {
             header: FileHeader {
                 pages: entries,
                 ..header
             },
             pages: self.pages,
             leaf_sources: Vec::new(),
-        }
+        })
     }
 }
 
@@ -150,8 +168,8 @@ impl SkeletonFirst {
         self.next_node += u64::from(count);
     }
 
-    /// The file.
-    pub fn finish(self, facts: SceneFacts) -> PagedFile {
+    /// The file, or why a page could not be written.
+    pub fn finish(self, facts: SceneFacts) -> Result<PagedFile, FormatError> {
         debug_assert_eq!(self.next_node, 1 + self.leaves, "a leaf without a page");
         self.writer.finish(FileHeader {
             kind: facts.kind,

@@ -541,7 +541,7 @@ mod tests {
             level_min: 0,
             level_max: 0,
         };
-        let (bytes, checksum) = encode_page(&page_header, records);
+        let (bytes, checksum) = encode_page(&page_header, records).unwrap();
         let entry = |first_node, node_count, first_child| PageEntry {
             offset: 0,
             length: bytes.len() as u32,
@@ -683,7 +683,7 @@ mod tests {
                 level_min: 0,
                 level_max: 0,
             };
-            let (b, checksum) = encode_page(&page, &records);
+            let (b, checksum) = encode_page(&page, &records).unwrap();
             entries.push(PageEntry::of(&page, b.len(), checksum));
             bytes.push(b);
         }

@@ -158,28 +158,37 @@ pub fn check_against_entry(
 
 /// Builds a page's bytes from its header and node records; returns the
 /// bytes and their checksum (also stored in the last four bytes).
-pub fn encode_page(header: &PageHeader, records: &[u8]) -> (Vec<u8>, u32) {
+pub fn encode_page(header: &PageHeader, records: &[u8]) -> Result<(Vec<u8>, u32), FormatError> {
     encode_page_with_payload(header, records, &[])
 }
 
 /// A page whose records are followed by a payload section (the color-cube
 /// octree's sub-cubes and leaf geometry, in node order). The body is
-/// compressed when that makes it smaller ([`page_codec::encode_body`]).
+/// compressed when that makes it smaller ([`page_codec::encode_body`]). A
+/// body over [`page_codec::MAX_DECODED_BODY_BYTES`] is an error: no reader
+/// would take it.
 pub fn encode_page_with_payload(
     header: &PageHeader,
     records: &[u8],
     payload: &[u8],
-) -> (Vec<u8>, u32) {
+) -> Result<(Vec<u8>, u32), FormatError> {
+    let body_bytes = records.len() + payload.len();
+    let decoded_len = u32::try_from(body_bytes)
+        .ok()
+        .filter(|&n| n <= page_codec::MAX_DECODED_BODY_BYTES)
+        .ok_or_else(|| FormatError::BadPage {
+            page: header.index,
+            message: format!(
+                "its body is {body_bytes} bytes, over the limit of {}",
+                page_codec::MAX_DECODED_BODY_BYTES
+            ),
+        })?;
     // Records are fixed-size, so their size follows from the count.
     let node_bytes = match header.node_count {
         0 => 1,
         n => records.len() / n as usize,
     };
     let (codec, body) = page_codec::encode_body(records, node_bytes, payload);
-    let decoded_len = u32::try_from(records.len() + payload.len())
-        .ok()
-        .filter(|&n| n <= page_codec::MAX_DECODED_BODY_BYTES)
-        .expect("a page body over the decoded-size limit (the builder bounds pages)");
     let mut out = Vec::with_capacity(PAGE_HEADER_BYTES + body.len() + PAGE_CHECKSUM_BYTES);
     header.encode_into(&mut out);
     out.extend_from_slice(&[codec as u8, 0, 0, 0]);
@@ -187,7 +196,7 @@ pub fn encode_page_with_payload(
     out.extend_from_slice(&body);
     let crc = crc32fast::hash(&out);
     out.extend_from_slice(&crc.to_le_bytes());
-    (out, crc)
+    Ok((out, crc))
 }
 
 /// A page whose checksum and header were verified, its body not yet
@@ -292,19 +301,8 @@ impl<'a> StoredPage<'a> {
     pub fn decode(self) -> Result<Page<'a>, FormatError> {
         let index = self.header.index;
         let body = match self.codec {
-            PageCodec::Stored if self.stored.len() == self.decoded_len as usize => {
-                Cow::Borrowed(self.stored)
-            }
-            PageCodec::Stored => {
-                return Err(FormatError::BadPage {
-                    page: index,
-                    message: format!(
-                        "{} stored body bytes where it claims {}",
-                        self.stored.len(),
-                        self.decoded_len
-                    ),
-                });
-            }
+            // `parse` checked that a stored body is as long as it claims.
+            PageCodec::Stored => Cow::Borrowed(self.stored),
             PageCodec::PlanesDeflate => Cow::Owned(page_codec::decode_planes_deflate(
                 self.stored,
                 self.decoded_len,
@@ -397,7 +395,7 @@ mod tests {
             level_min: 2,
             level_max: 3,
         };
-        encode_page(&header, &[1, 2, 3, 4, 5, 6, 7, 8]).0
+        encode_page(&header, &[1, 2, 3, 4, 5, 6, 7, 8]).unwrap().0
     }
 
     #[test]
@@ -435,7 +433,7 @@ mod tests {
             level_min: 1,
             level_max: 1,
         };
-        (encode_page(&header, &records).0, records)
+        (encode_page(&header, &records).unwrap().0, records)
     }
 
     #[test]

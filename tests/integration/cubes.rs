@@ -558,7 +558,8 @@ fn corrupt_cube_pages_are_refused() {
                 &parsed.header,
                 &records,
                 &payload,
-            );
+            )
+            .unwrap();
             // A directory that agrees (a forged file), so the page reaches
             // the checks behind the checksums.
             let mut header = file.header.clone();

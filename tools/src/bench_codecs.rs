@@ -3,17 +3,19 @@
 //! them on one core. The pages' decoded bodies (records, then payload) are
 //! the input, so the figures are this project's own records, not a corpus.
 //!
-//! Candidates are deflate at three levels, over the body as is and over
-//! the records split into byte planes ([`split_planes`], what the format
-//! stores); the format's choice is `planes+deflate6`. A general-purpose
-//! survey with zstd and LZMA, which have no pure-Rust encoder, is
-//! `benches/page_codecs.py`.
+//! Candidates are deflate at several levels, over the body as is and over
+//! the records split into byte planes (what the format stores), each
+//! through the format's own codec (`page_codec::encode_body_at`, and
+//! `decode_planes_deflate` back); the format's choice is
+//! `planes+deflate3`. A general-purpose survey with zstd and LZMA, which
+//! have no pure-Rust encoder, is `benches/page_codecs.py`.
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
+use farfield_protocol::FormatError;
 use farfield_protocol::page::{Page, check_page};
-use farfield_protocol::page_codec::{join_planes, split_planes};
+use farfield_protocol::page_codec::{PageCodec, decode_planes_deflate, encode_body_at};
 use farfield_store::SceneFile;
 use serde_json::json;
 
@@ -43,42 +45,31 @@ impl Candidate {
         )
     }
 
-    fn encode(self, body: &Body) -> Vec<u8> {
-        let input = self.prepare(body);
-        let deflated = miniz_oxide::deflate::compress_to_vec(&input, self.level);
-        // A page that would grow is stored (as the format does).
-        if deflated.len() < input.len() {
-            deflated
-        } else {
-            input
-        }
+    /// Records of one byte are not split: the body is deflated as it is.
+    fn node_bytes(self, body: &Body) -> usize {
+        if self.planes { body.node_bytes } else { 1 }
     }
 
-    fn prepare(self, body: &Body) -> Vec<u8> {
-        if !self.planes {
-            return body.bytes.clone();
-        }
-        let mut out = split_planes(&body.bytes[..body.record_bytes], body.node_bytes);
-        out.extend_from_slice(&body.bytes[body.record_bytes..]);
-        out
+    fn encode(self, body: &Body) -> (PageCodec, Vec<u8>) {
+        let (records, payload) = body.bytes.split_at(body.record_bytes);
+        encode_body_at(records, self.node_bytes(body), payload, self.level)
     }
 
-    fn decode(self, body: &Body, stored: &[u8]) -> Vec<u8> {
-        if stored.len() == body.bytes.len() && !self.planes {
-            return stored.to_vec();
+    fn decode(
+        self,
+        body: &Body,
+        (codec, stored): &(PageCodec, Vec<u8>),
+    ) -> Result<Vec<u8>, FormatError> {
+        match codec {
+            PageCodec::Stored => Ok(stored.clone()),
+            PageCodec::PlanesDeflate => decode_planes_deflate(
+                stored,
+                body.bytes.len() as u32,
+                body.record_bytes,
+                self.node_bytes(body),
+                0,
+            ),
         }
-        let inflated = if stored.len() == body.bytes.len() {
-            stored.to_vec()
-        } else {
-            miniz_oxide::inflate::decompress_to_vec_with_limit(stored, body.bytes.len())
-                .expect("a page this bench deflated inflates")
-        };
-        if !self.planes {
-            return inflated;
-        }
-        let mut out = join_planes(&inflated[..body.record_bytes], body.node_bytes);
-        out.extend_from_slice(&inflated[body.record_bytes..]);
-        out
     }
 }
 
@@ -176,19 +167,19 @@ pub fn codecs(files: &[PathBuf], repeats: usize) -> anyhow::Result<Measured> {
                 encode_rates.push(raw as f64 / started.elapsed().as_secs_f64().max(1e-9));
                 let started = Instant::now();
                 for (body, s) in pages.iter().zip(&stored) {
-                    std::hint::black_box(candidate.decode(body, s));
+                    std::hint::black_box(candidate.decode(body, s)?);
                 }
                 decode_rates.push(raw as f64 / started.elapsed().as_secs_f64().max(1e-9));
             }
             // The round trip is exact (once, outside the timing).
             for (body, s) in pages.iter().zip(&stored) {
                 anyhow::ensure!(
-                    candidate.decode(body, s) == body.bytes,
+                    candidate.decode(body, s)? == body.bytes,
                     "{} does not round-trip",
                     candidate.name()
                 );
             }
-            let total: usize = stored.iter().map(Vec::len).sum();
+            let total: usize = stored.iter().map(|(_, s)| s.len()).sum();
             let (encode, decode) = (median(&mut encode_rates), median(&mut decode_rates));
             text += &format!(
                 "  {:16} {:6.3}x  {:6.2} bytes/input  encode {:7.1} MB/s  decode {:7.1} MB/s\n",
@@ -248,6 +239,6 @@ fn pages_stored(scene: &SceneFile) -> usize {
         .header
         .pages
         .iter()
-        .map(|p| p.length as usize - PAGE_HEADER_BYTES - PAGE_CHECKSUM_BYTES)
+        .map(|p| (p.length as usize).saturating_sub(PAGE_HEADER_BYTES + PAGE_CHECKSUM_BYTES))
         .sum()
 }

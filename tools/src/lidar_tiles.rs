@@ -40,6 +40,12 @@ pub fn write_tiles(job: &LidarJob) -> anyhow::Result<Vec<PathBuf>> {
     anyhow::ensure!(job.grid > 0, "a grid of at least one tile");
     std::fs::create_dir_all(&job.out).with_context(|| format!("creating {}", job.out.display()))?;
     let tiles = u64::from(job.grid) * u64::from(job.grid);
+    // A tile without points is a LAS file no build reads.
+    anyhow::ensure!(
+        job.points >= tiles,
+        "{} points cannot fill {tiles} tiles",
+        job.points
+    );
     let side = (job.points as f64 / POINTS_PER_SQUARE_METRE).sqrt();
     let tile_side = side / f64::from(job.grid);
     (0..tiles)

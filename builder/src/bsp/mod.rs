@@ -170,7 +170,7 @@ pub fn build_bsp(scene: &Scene, options: &BspOptions) -> Result<(PagedFile, BspS
             input_vertices: scene.instanced_vertex_count(),
             inflation: options.inflation as f32,
         },
-    );
+    )?;
     let mesh = collected.mesh.corners.len() as u64;
     let ratio = |a: u64, b: u64| if b > 0 { a as f64 / b as f64 } else { 0.0 };
     let stats = BspStats {

@@ -2,6 +2,7 @@
 //! page of its own after it, then one page per leaf (in the tree's
 //! preorder, so neighbouring leaves are neighbouring pages).
 
+use farfield_protocol::FormatError;
 use farfield_protocol::bsp_codec::{
     self, BspNode, BspSkeleton, FlatTriangle, LeafPage, Placement as StoredPlacement,
     PrototypeInfo, PrototypePage, Split,
@@ -42,7 +43,7 @@ pub fn lay_out(
     tree: &Tree,
     inflated: &[Inflated],
     info: &LayoutInfo,
-) -> Laid {
+) -> Result<Laid, FormatError> {
     // Leaf boxes and triangle counts, then interior ones (children come
     // after parents, so a reverse pass sees children first).
     let mut boxes = vec![(DVec3::INFINITY, DVec3::NEG_INFINITY); tree.nodes.len()];
@@ -154,15 +155,15 @@ pub fn lay_out(
         root_center: centre,
         // A scene that is one point still has a sphere.
         root_radius: ((bounds_max - bounds_min).length() * 0.5).max(1e-6),
-    });
-    Laid {
+    })?;
+    Ok(Laid {
         file,
         stored_triangles,
         stored_placements,
         scene_triangles,
         bounds_min,
         bounds_max,
-    }
+    })
 }
 
 /// A leaf's page: its triangles relative to their lowest corner, its

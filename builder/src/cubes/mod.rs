@@ -163,7 +163,7 @@ pub fn build_cubes(
             root_center: center,
             root_half_edge: edge * 0.5,
         },
-    );
+    )?;
     let stats = CubeStats {
         input_vertices: scene.instanced_vertex_count(),
         input_primitives,

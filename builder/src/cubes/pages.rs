@@ -4,6 +4,7 @@
 //! (a group bigger than a page gets a page of its own). Each page's
 //! payload section holds its cells' sub-cubes and leaf geometry, in order.
 
+use farfield_protocol::FormatError;
 use farfield_protocol::cube_codec::{self, CubeRecord, Rgba8, SubCube};
 use farfield_protocol::file::{AttributeFlags, FileHeader, HierarchyKind};
 use farfield_protocol::page::{PAGE_CHECKSUM_BYTES, PAGE_HEADER_BYTES, PageHeader};
@@ -45,7 +46,7 @@ pub fn to_rgba8(faces: &Faces) -> [Rgba8; 6] {
 }
 
 /// Encodes the cells breadth-first and cuts them into pages.
-pub fn lay_out(root: &Cell, info: LayoutInfo) -> PagedFile {
+pub fn lay_out(root: &Cell, info: LayoutInfo) -> Result<PagedFile, FormatError> {
     let mut cells: Vec<Encoded> = Vec::new();
     let mut queue = std::collections::VecDeque::from([(root, 0u16)]);
     let (mut leaves, mut levels) = (0u64, 0u32);

@@ -216,7 +216,7 @@ pub fn build_plp(scene: &Scene, options: &PlpOptions) -> Result<(PagedFile, PlpS
             box_max,
             root_center: centre,
         },
-    );
+    )?;
     let assignments: usize = cells_of.iter().map(Vec::len).sum();
     let n = tris.corners.len() as f64;
     let stats = PlpStats {

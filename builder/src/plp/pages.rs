@@ -6,6 +6,7 @@
 
 use std::collections::HashMap;
 
+use farfield_protocol::FormatError;
 use farfield_protocol::file::{AttributeFlags, HierarchyKind};
 use farfield_protocol::plp_codec::{self, Cell, CellPage, NO_NEIGHBOUR, Skeleton, StoredTriangle};
 use glam::DVec3;
@@ -47,7 +48,7 @@ pub fn lay_out(
     tris: &Triangles,
     cells_of: &[Vec<u32>],
     info: &LayoutInfo,
-) -> Laid {
+) -> Result<Laid, FormatError> {
     // Cell -> its triangles, ascending.
     let mut lists: Vec<Vec<u32>> = vec![Vec::new(); t.cells.len()];
     for (tri, cells) in cells_of.iter().enumerate() {
@@ -145,12 +146,12 @@ pub fn lay_out(
         bounds_max: info.bounds_max,
         root_center,
         root_radius: (hi - lo).length() * 0.5,
-    });
-    Laid {
+    })?;
+    Ok(Laid {
         file,
         rho_max,
         stored_triangles: stored,
-    }
+    })
 }
 
 /// One page's cells as they are added.

@@ -8,6 +8,7 @@
 //! into pages in breadth-first order; a page holds whole sibling groups and
 //! page 0 ends on a level boundary, so it is a complete coarse model.
 
+use farfield_protocol::FormatError;
 use farfield_protocol::file::{AttributeFlags, FileHeader, HierarchyKind};
 use farfield_protocol::page::{PAGE_CHECKSUM_BYTES, PAGE_HEADER_BYTES, PageHeader};
 use farfield_protocol::paged_file::PagedFile;
@@ -33,7 +34,11 @@ pub struct LayoutInput {
 
 /// Quantizes the tree and cuts it into pages.
 /// `progress` counts the nodes placed in pages.
-pub fn lay_out(tree: Tree, input: LayoutInput, progress: &dyn Progress) -> PagedFile {
+pub fn lay_out(
+    tree: Tree,
+    input: LayoutInput,
+    progress: &dyn Progress,
+) -> Result<PagedFile, FormatError> {
     let node_bytes = input.layout.bytes() as usize;
     let mut pages = PageCutter::new(input.page_bytes, node_bytes);
     // Every node is placed once: the interior ones and the leaves the tree
@@ -192,9 +197,9 @@ pub fn lay_out(tree: Tree, input: LayoutInput, progress: &dyn Progress) -> Paged
         root_center,
         root_radius,
         pages: Vec::new(),
-    });
+    })?;
     file.leaf_sources = leaf_sources;
-    file
+    Ok(file)
 }
 
 /// Parents whose sibling groups are quantized per window: enough work to

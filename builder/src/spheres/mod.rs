@@ -137,7 +137,7 @@ pub fn build_spheres_reporting(
             record_leaf_sources: options.record_leaf_sources,
         },
         progress,
-    );
+    )?;
     let seconds_layout = started.elapsed().as_secs_f64();
     let stats = BuildStats {
         input_vertices: leaf_stats.input_vertices,
