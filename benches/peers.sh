@@ -14,6 +14,9 @@
 #   POTREE_METHODS  its sampling methods to run (default: "poisson random";
 #               poisson is its default)
 #   FARFIELD_BIN_DIR  farfield's binaries (default: target/release)
+#   FARFIELD_MEMORY  farfield's memory budgets (`build --memory`) to run,
+#               "default" for none given (default: "default 512M": in
+#               memory, and out of core in chunks spilled under WORK)
 #   ROUNDS      runs of each tool a size (default 2)
 #   WORK        where inputs and outputs go (default: a new folder in /tmp)
 set -euo pipefail
@@ -22,6 +25,7 @@ sizes=("$@")
 bin=${FARFIELD_BIN_DIR:-target/release}
 rounds=${ROUNDS:-2}
 methods=${POTREE_METHODS:-poisson random}
+budgets=${FARFIELD_MEMORY:-default 512M}
 work=${WORK:-$(mktemp -d /tmp/farfield-peers.XXXXXX)}
 mkdir -p "$work"
 
@@ -52,11 +56,19 @@ for m in "${sizes[@]}"; do
   points=$((m * 1000000))
   "$bin/farfield-server" lidar-tiles --points $points --grid 2 --out "$work/in" >/dev/null
   for round in $(seq 1 "$rounds"); do
-    rm -f "$work/out.ff"
-    read -r wall peak < <(measure "$bin/farfield-server" build "$work"/in/*.las --out "$work/out.ff")
-    bytes=$(stat -c %s "$work/out.ff")
-    printf '%-9s %-22s %5s %9s %9s %14s %10.2f\n' $points farfield "$round" "$wall" "$peak" "$bytes" \
-      "$(echo "$bytes / $points" | bc -l)"
+    for budget in $budgets; do
+      rm -f "$work/out.ff"
+      memory=()
+      name=farfield
+      if [ "$budget" != default ]; then
+        memory=(--memory "$budget" --tmp "$work")
+        name="farfield-$budget"
+      fi
+      read -r wall peak < <(measure "$bin/farfield-server" build "$work"/in/*.las --out "$work/out.ff" "${memory[@]}")
+      bytes=$(stat -c %s "$work/out.ff")
+      printf '%-9s %-22s %5s %9s %9s %14s %10.2f\n' $points "$name" "$round" "$wall" "$peak" "$bytes" \
+        "$(echo "$bytes / $points" | bc -l)"
+    done
     for method in $methods; do
       rm -rf "$work/potree"
       read -r wall peak < <(measure "$potree" "$work/in" -o "$work/potree" -m "$method")

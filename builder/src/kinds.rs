@@ -23,6 +23,16 @@ pub struct BuildSettings {
     pub bsp: BspOptions,
 }
 
+impl BuildSettings {
+    /// The sphere builder's options, `page_bytes` applied.
+    pub fn spheres_options(&self) -> BuildOptions {
+        BuildOptions {
+            page_bytes: self.page_bytes.unwrap_or(self.spheres.page_bytes),
+            ..self.spheres
+        }
+    }
+}
+
 /// What a build made: the file, the kind's own statistics (for `--json`
 /// summaries) and its node count.
 #[derive(Debug)]
@@ -101,8 +111,7 @@ fn build_spheres_kind(
     settings: &BuildSettings,
     progress: &dyn Progress,
 ) -> Result<Built, BuildError> {
-    let mut options = settings.spheres;
-    options.page_bytes = settings.page_bytes.unwrap_or(options.page_bytes);
+    let options = settings.spheres_options();
     let (file, stats) = build_spheres_reporting(scene, &options, progress)?;
     let nodes = stats.nodes;
     Ok(Built::new(file, stats, nodes))

@@ -20,6 +20,7 @@ pub mod scene;
 pub mod cubes;
 pub mod generate;
 pub mod kinds;
+pub mod out_of_core;
 pub mod page_writer;
 pub mod plp;
 pub mod progress;

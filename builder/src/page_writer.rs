@@ -8,6 +8,10 @@
 //! themselves through [`PageWriter`], and the two-level "skeleton first"
 //! shape PLP and image caching share, written by [`SkeletonFirst`].
 
+use std::fs::File;
+use std::io::{BufWriter, Write};
+use std::path::{Path, PathBuf};
+
 use farfield_protocol::FormatError;
 use farfield_protocol::file::{AttributeFlags, FileHeader, HierarchyKind, PageEntry, place_pages};
 use farfield_protocol::page::{PageHeader, encode_page_with_payload};
@@ -26,6 +30,9 @@ const ENCODE_BATCH: usize = 64;
 pub struct PageWriter {
     entries: Vec<PageEntry>,
     pages: Vec<Vec<u8>>,
+    /// Where encoded pages go instead of `pages`, for builds larger than
+    /// memory ([`PageWriter::spilling_to`]).
+    spill: Option<Spill>,
     /// Each page's header, records and payload, in order after `pages`.
     pending: Vec<(PageHeader, Vec<u8>, Vec<u8>)>,
     /// The first page that could not be encoded (a body over the format's
@@ -47,6 +54,19 @@ impl PageWriter {
         }
     }
 
+    /// A writer that appends each encoded page to the file at `path`
+    /// instead of keeping it: memory then holds only the directory.
+    pub fn spilling_to(path: &Path) -> std::io::Result<Self> {
+        Ok(Self {
+            spill: Some(Spill {
+                path: path.to_owned(),
+                out: BufWriter::with_capacity(1 << 20, File::create(path)?),
+                error: None,
+            }),
+            ..Self::default()
+        })
+    }
+
     fn encode_pending(&mut self) {
         let encoded: Vec<_> = self
             .pending
@@ -60,7 +80,10 @@ impl PageWriter {
             match page {
                 Ok((entry, bytes)) => {
                     self.entries.push(entry);
-                    self.pages.push(bytes);
+                    match &mut self.spill {
+                        Some(spill) => spill.write(&bytes),
+                        None => self.pages.push(bytes),
+                    }
                 }
                 Err(e) => {
                     self.error.get_or_insert(e);
@@ -76,6 +99,37 @@ impl PageWriter {
 
     pub fn is_empty(&self) -> bool {
         self.len() == 0
+    }
+
+    /// For a writer made by [`PageWriter::spilling_to`]: the header (whose
+    /// directory is `header`'s replaced by the pages written) and the file
+    /// of their bytes, in order; or why a page could not be written.
+    pub fn finish_spilled(mut self, header: FileHeader) -> Result<SpilledFile, SpillError> {
+        self.encode_pending();
+        if let Some(e) = self.error {
+            return Err(SpillError::Format(e));
+        }
+        let Some(spill) = self.spill else {
+            return Err(SpillError::Io(std::io::Error::other(
+                "the pages were not spilled",
+            )));
+        };
+        if let Some(e) = spill.error {
+            return Err(SpillError::Io(e));
+        }
+        spill
+            .out
+            .into_inner()
+            .map_err(|e| SpillError::Io(e.into_error()))?;
+        let mut entries = self.entries;
+        place_pages(&mut entries);
+        Ok(SpilledFile {
+            header: FileHeader {
+                pages: entries,
+                ..header
+            },
+            body: spill.path,
+        })
     }
 
     /// The file: `header` (whose directory is ignored) with the directory
@@ -99,6 +153,67 @@ impl PageWriter {
             leaf_sources: Vec::new(),
         })
     }
+}
+
+/// The file a spilling [`PageWriter`] appends pages to.
+#[derive(Debug)]
+struct Spill {
+    path: PathBuf,
+    out: BufWriter<File>,
+    /// The first write that failed; reported by `finish_spilled`.
+    error: Option<std::io::Error>,
+}
+
+impl Spill {
+    fn write(&mut self, bytes: &[u8]) {
+        if self.error.is_none()
+            && let Err(e) = self.out.write_all(bytes)
+        {
+            self.error = Some(e);
+        }
+    }
+}
+
+/// A finished file whose pages are in a file of their own: the header to
+/// write first, then `body`'s bytes (`farfield_store::write_atomic_parts`).
+#[derive(Debug)]
+pub struct SpilledFile {
+    pub header: FileHeader,
+    /// The pages' bytes, in directory order.
+    pub body: PathBuf,
+}
+
+impl SpilledFile {
+    /// The whole file in memory, for tests and small scenes.
+    pub fn read(&self) -> std::io::Result<PagedFile> {
+        let body = std::fs::read(&self.body)?;
+        let start = FileHeader::encoded_len(self.header.pages.len()) as u64;
+        let pages = self
+            .header
+            .pages
+            .iter()
+            .map(|e| {
+                let at = (e.offset - start) as usize;
+                body.get(at..at + e.length as usize)
+                    .map(<[u8]>::to_vec)
+                    .ok_or_else(|| std::io::Error::other("the pages file is short"))
+            })
+            .collect::<std::io::Result<_>>()?;
+        Ok(PagedFile {
+            header: self.header.clone(),
+            pages,
+            leaf_sources: Vec::new(),
+        })
+    }
+}
+
+/// Why a spilled file could not be finished.
+#[derive(Debug, thiserror::Error)]
+pub enum SpillError {
+    #[error(transparent)]
+    Format(#[from] FormatError),
+    #[error("writing pages: {0}")]
+    Io(#[from] std::io::Error),
 }
 
 /// What a two-level file's header says besides its shape.

@@ -51,6 +51,7 @@ pub enum StoreError {
 /// Checks, before a long build, that `path` can be written: its folder
 /// exists and takes a new file (one is created and removed), and `path` is
 /// not a folder. A build that could only fail at its end should fail first.
+/// Temporary files a killed writer of `path` left behind are removed.
 pub fn check_target(path: &Path) -> Result<(), StoreError> {
     let io = |error| StoreError::Io {
         path: path.to_owned(),
@@ -59,11 +60,43 @@ pub fn check_target(path: &Path) -> Result<(), StoreError> {
     if path.is_dir() {
         return Err(io(std::io::Error::other("is a folder, not a file")));
     }
+    remove_abandoned_temps(path);
     // Not the name `write_atomic` uses: a write of the same path in this
     // process may be under way.
     let probe = temp_path(path, "tmp-check")?;
     File::create(&probe).map_err(io)?;
     std::fs::remove_file(&probe).map_err(io)
+}
+
+/// Removes the temporary files of writes of `path` (see [`temp_path`]) by
+/// processes that are no longer running: a build killed while it wrote.
+/// Only where processes can be looked up (`/proc`); elsewhere nothing.
+fn remove_abandoned_temps(path: &Path) {
+    let proc = Path::new("/proc/self");
+    let (Ok(probe), Some(name)) = (temp_path(path, "tmp"), path.file_name()) else {
+        return;
+    };
+    if !proc.exists() {
+        return;
+    }
+    let prefix = format!(".{}.tmp-", name.to_string_lossy());
+    let Some(dir) = probe.parent() else { return };
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return;
+    };
+    for entry in entries.flatten() {
+        let file = entry.file_name();
+        let Some(pid) = file
+            .to_str()
+            .and_then(|f| f.strip_prefix(&prefix))
+            .and_then(|p| p.parse::<u32>().ok())
+        else {
+            continue;
+        };
+        if pid != std::process::id() && !Path::new(&format!("/proc/{pid}")).exists() {
+            let _ = std::fs::remove_file(entry.path());
+        }
+    }
 }
 
 /// A temporary file for `path`: hidden, next to `path` (so a rename stays on
@@ -82,6 +115,31 @@ fn temp_path(path: &Path, kind: &str) -> Result<PathBuf, StoreError> {
         name.to_string_lossy(),
         std::process::id()
     )))
+}
+
+/// Writes a file made of `header` (its encoded bytes) and then the bytes of
+/// the file at `body` (pages a build spilled to disk) to `path`, through a
+/// temporary file and a rename, as [`write_atomic`] does. The body is
+/// copied by the kernel where it can (`copy_file_range`), never through
+/// memory whole.
+pub fn write_atomic_parts(path: &Path, header: &[u8], body: &Path) -> Result<u64, StoreError> {
+    let io = |error| StoreError::Io {
+        path: path.to_owned(),
+        error,
+    };
+    let tmp = temp_path(path, "tmp")?;
+    let result = (|| -> std::io::Result<u64> {
+        let mut out = File::create(&tmp)?;
+        out.write_all(header)?;
+        let copied = std::io::copy(&mut File::open(body)?, &mut out)?;
+        out.sync_all()?;
+        std::fs::rename(&tmp, path)?;
+        Ok(header.len() as u64 + copied)
+    })();
+    if result.is_err() {
+        let _ = std::fs::remove_file(&tmp);
+    }
+    result.map_err(io)
 }
 
 /// Writes `file` to `path` through a temporary file and a rename.

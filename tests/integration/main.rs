@@ -6,6 +6,7 @@ mod bad_input;
 mod bench;
 mod bsp;
 mod cgroup;
+mod chunked_builds;
 mod cli;
 mod crowd;
 mod cubes;

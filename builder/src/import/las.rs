@@ -38,72 +38,169 @@ const BATCH_BYTES: u64 = 16 << 20;
 
 /// Loads a LAS or LAZ file as one point cloud.
 pub fn load(path: &Path) -> Result<Scene, ImportError> {
+    // Sized once from the header (a vector grown by doubling would briefly
+    // hold a large cloud up to three times).
+    let cap = capacity(path)?;
+    let mut positions = Vec::with_capacity(cap);
+    let mut colors: Option<Vec<[u16; 3]>> = None;
+    let info = stream(path, &mut |batch, rgb| {
+        positions.extend_from_slice(batch);
+        if let Some(rgb) = rgb {
+            colors
+                .get_or_insert_with(|| Vec::with_capacity(cap))
+                .extend_from_slice(rgb);
+        }
+        Ok(())
+    })?;
+    let mut geometry = Geometry::new(path.display().to_string(), positions, Primitives::Points);
+    geometry.colors = info.has_color.then(|| {
+        let colors = colors.unwrap_or_default();
+        let wide = colors.iter().flatten().any(|&v| v > 255);
+        colors
+            .into_iter()
+            .map(|rgb| rgb.map(|v| to8(v, wide)))
+            .collect()
+    });
+    Ok(Scene::single(geometry))
+}
+
+/// Points to make room for: the header's count, bounded by what the file
+/// can hold (compressed points take at least a few bytes each, whatever
+/// the header says).
+fn capacity(path: &Path) -> Result<usize, ImportError> {
     let mut file = File::open(path).map_err(|e| ImportError::io(path, e))?;
     let file_len = file.metadata().map_err(|e| ImportError::io(path, e))?.len();
     let (count, compressed) = precheck(path, &mut file, file_len)?;
-    // Compressed points take at least a few bytes each, whatever the header says.
-    let cap = count.min(if compressed { file_len } else { file_len / 20 }) as usize;
+    Ok(count.min(if compressed { file_len } else { file_len / 20 }) as usize)
+}
+
+/// A 16-bit LAS color channel as 8 bits: divided by 257 when the file's
+/// channels are `wide` (some exceeds 255), as they are when not.
+pub(crate) fn to8(v: u16, wide: bool) -> u8 {
+    if wide {
+        ((u32::from(v) + 128) / 257) as u8
+    } else {
+        v as u8
+    }
+}
+
+/// What takes a file's points a batch at a time: positions, and 16-bit
+/// colors when the format has them.
+pub(crate) type EachBatch<'a> =
+    dyn FnMut(&[DVec3], Option<&[[u16; 3]]>) -> Result<(), ImportError> + 'a;
+
+/// What a LAS or LAZ file's header says, checked against the file.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct LasInfo {
+    /// Points the header promises.
+    pub count: u64,
+    /// Whether the point format carries RGB.
+    pub has_color: bool,
+    /// The header's bounds (scaled): a hint, not a promise.
+    pub bounds: (DVec3, DVec3),
+}
+
+/// Reads the header of a LAS or LAZ file, checked as [`load`] checks it.
+pub(crate) fn survey(path: &Path) -> Result<LasInfo, ImportError> {
+    let mut file = File::open(path).map_err(|e| ImportError::io(path, e))?;
+    let file_len = file.metadata().map_err(|e| ImportError::io(path, e))?.len();
+    let (count, _) = precheck(path, &mut file, file_len)?;
+    let open =
+        move || las::Reader::new(BufReader::new(file)).map_err(|e| las_error(path, "header", e));
+    // Opening a LAZ file decodes its chunk table.
+    let reader = catch_unwind(AssertUnwindSafe(open)).unwrap_or_else(|_| {
+        Err(ImportError::malformed(
+            path,
+            "header",
+            "the LAZ data is corrupt",
+        ))
+    })?;
+    let header = reader.header();
+    let b = header.bounds();
+    Ok(LasInfo {
+        count,
+        has_color: header.point_format().has_color,
+        bounds: (
+            DVec3::new(b.min.x, b.min.y, b.min.z),
+            DVec3::new(b.max.x, b.max.y, b.max.z),
+        ),
+    })
+}
+
+/// Reads a LAS or LAZ file's points in batches (positions with the file's
+/// scale and offset applied; 16-bit colors when the format has them), each
+/// handed to `each` as it is decoded, so memory does not grow with the
+/// file. An error from `each` stops the reading and is returned.
+pub(crate) fn stream(path: &Path, each: &mut EachBatch<'_>) -> Result<LasInfo, ImportError> {
+    let mut file = File::open(path).map_err(|e| ImportError::io(path, e))?;
+    let file_len = file.metadata().map_err(|e| ImportError::io(path, e))?.len();
+    let (count, compressed) = precheck(path, &mut file, file_len)?;
     // Opening a LAZ file decodes its chunk table, so that is inside the
     // decompressor's `catch_unwind` too.
     let read = move || {
         let mut reader = las::Reader::new(BufReader::with_capacity(1 << 20, file))
             .map_err(|e| las_error(path, "header", e))?;
-        read_points(path, &mut reader, cap)
+        let header = reader.header();
+        let b = header.bounds();
+        let info = LasInfo {
+            count,
+            has_color: header.point_format().has_color,
+            bounds: (
+                DVec3::new(b.min.x, b.min.y, b.min.z),
+                DVec3::new(b.max.x, b.max.y, b.max.z),
+            ),
+        };
+        read_points(path, &mut reader, each)?;
+        Ok(info)
     };
-    let (positions, colors) = if compressed {
+    if compressed {
         catch_unwind(AssertUnwindSafe(read)).unwrap_or_else(|_| {
             Err(ImportError::malformed(
                 path,
                 "point data",
                 "the LAZ data is corrupt",
             ))
-        })?
+        })
     } else {
-        read()?
-    };
-    let mut geometry = Geometry::new(path.display().to_string(), positions, Primitives::Points);
-    geometry.colors = colors.map(|c| {
-        let wide = c.iter().flatten().any(|&v| v > 255);
-        let to8 = |v: u16| {
-            if wide {
-                ((u32::from(v) + 128) / 257) as u8
-            } else {
-                v as u8
-            }
-        };
-        c.into_iter().map(|rgb| rgb.map(to8)).collect()
-    });
-    Ok(Scene::single(geometry))
+        read()
+    }
 }
 
-type Points = (Vec<DVec3>, Option<Vec<[u16; 3]>>);
-
-fn read_points(path: &Path, reader: &mut las::Reader, cap: usize) -> Result<Points, ImportError> {
+fn read_points(
+    path: &Path,
+    reader: &mut las::Reader,
+    each: &mut EachBatch<'_>,
+) -> Result<(), ImportError> {
     let mut data = las::PointDataBuilder::new()
         .for_header(reader.header())
         .build();
-    let mut positions = Vec::with_capacity(cap);
     let format = reader.header().point_format();
-    let mut colors = format.has_color.then(|| Vec::with_capacity(cap));
+    let has_color = format.has_color;
     let batch = (BATCH_BYTES / u64::from(format.len()).max(1)).clamp(1, BATCH);
+    let mut positions = Vec::with_capacity(batch as usize);
+    let mut colors = Vec::with_capacity(if has_color { batch as usize } else { 0 });
+    let mut read = 0u64;
     loop {
-        let at = format!("point {}", positions.len());
-        if reader
+        let at = format!("point {read}");
+        let n = reader
             .fill_points(batch, &mut data)
-            .map_err(|e| las_error(path, at, e))?
-            == 0
-        {
-            return Ok((positions, colors));
+            .map_err(|e| las_error(path, at, e))?;
+        if n == 0 {
+            return Ok(());
         }
+        read += n;
+        positions.clear();
         positions.extend(
             data.x()
                 .zip(data.y())
                 .zip(data.z())
                 .map(|((x, y), z)| DVec3::new(x, y, z)),
         );
-        if let (Some(colors), Some(rgb)) = (colors.as_mut(), data.rgb()) {
+        colors.clear();
+        if has_color && let Some(rgb) = data.rgb() {
             colors.extend(rgb.map(|(r, g, b)| [r, g, b]));
         }
+        each(&positions, has_color.then_some(&colors[..]))?;
     }
 }
 

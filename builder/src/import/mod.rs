@@ -10,7 +10,7 @@
 //! Importers produce scenes, never files: they know nothing of hierarchies.
 
 mod common;
-mod las;
+pub(crate) mod las;
 mod obj;
 mod off;
 mod params;

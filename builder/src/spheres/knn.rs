@@ -43,8 +43,31 @@ const SEARCHES_PER_TASK: usize = 1 << 10;
 /// tree's own order, so consecutive searches walk the same branches while
 /// they are in cache.
 pub fn size_points(leaves: &mut [Leaf], normals: Option<&[Vec3]>) {
+    size_points_capped(leaves, normals, true);
+}
+
+/// [`size_points`] without the outlier cap, for a part of a cloud, whose
+/// median is not the whole cloud's: returns each leaf's radius as found
+/// (its `radius` is that, rounded up to f32), and the caller caps them
+/// later with [`radius_cap`] of the whole cloud's median.
+pub fn size_points_uncapped(leaves: &mut [Leaf], normals: Option<&[Vec3]>) -> Vec<f64> {
+    size_points_capped(leaves, normals, false)
+}
+
+/// How much larger than the median radius a point's radius may be.
+pub const OUTLIER_CAP: f64 = 8.0;
+
+/// The largest radius a point gets in a cloud whose median radius is
+/// `median`.
+pub fn radius_cap(median: f64) -> f64 {
+    median * OUTLIER_CAP
+}
+
+/// Sizes and orients `leaves`; returns their radii as found, unless
+/// `capped` (then empty).
+fn size_points_capped(leaves: &mut [Leaf], normals: Option<&[Vec3]>, capped: bool) -> Vec<f64> {
     if leaves.is_empty() {
-        return;
+        return Vec::new();
     }
     // Identical points collapse to one before the search, so a million
     // copies of one point cost a sort, not a million searches among copies.
@@ -94,20 +117,32 @@ pub fn size_points(leaves: &mut [Leaf], normals: Option<&[Vec3]>) {
         .collect();
     // An isolated outlier would otherwise draw a splat the size of the gap
     // around it: clamp to a few times the typical radius.
-    let mut sorted: Vec<f64> = found.iter().map(|f| f.0).filter(|r| *r > 0.0).collect();
-    let cap = if sorted.is_empty() {
-        f64::INFINITY
+    let cap = if capped {
+        let mut sorted: Vec<f64> = found.iter().map(|f| f.0).filter(|r| *r > 0.0).collect();
+        if sorted.is_empty() {
+            f64::INFINITY
+        } else {
+            let mid = sorted.len() / 2;
+            radius_cap(*sorted.select_nth_unstable_by(mid, f64::total_cmp).1)
+        }
     } else {
-        let mid = sorted.len() / 2;
-        *sorted.select_nth_unstable_by(mid, f64::total_cmp).1 * 8.0
+        f64::INFINITY
     };
-    drop(sorted);
     // Where each distinct point's result is: its place in the tree.
     let mut slot_of = vec![0u32; found.len()];
     for (slot, entry) in tree.entries.iter().enumerate() {
         slot_of[entry.id as usize] = slot as u32;
     }
     drop(tree);
+    let found_radius = |i: usize| found[slot_of[unique_of[i] as usize] as usize].0;
+    let radii = if capped {
+        Vec::new()
+    } else {
+        (0..leaves.len())
+            .into_par_iter()
+            .map(found_radius)
+            .collect()
+    };
     leaves
         .par_iter_mut()
         .with_min_len(SEARCHES_PER_TASK)
@@ -123,6 +158,7 @@ pub fn size_points(leaves: &mut [Leaf], normals: Option<&[Vec3]>) {
             leaf.normal = pack_normal(n);
             leaf.cone = 255;
         });
+    radii
 }
 
 /// Normal of the plane through the neighbours: the eigenvector of their

@@ -10,15 +10,14 @@
 
 use farfield_protocol::FormatError;
 use farfield_protocol::file::{AttributeFlags, FileHeader, HierarchyKind};
-use farfield_protocol::page::{PAGE_CHECKSUM_BYTES, PAGE_HEADER_BYTES, PageHeader};
 use farfield_protocol::paged_file::PagedFile;
 use farfield_protocol::sphere_codec::{self, ChildCount, NodeLayout, NodeRecord};
 use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 
 use super::leaves::{Leaf, cone_from_u8, unpack_normal};
-use super::tree::{NodeRef, SharedNodes, Tree};
-use crate::page_writer::PageWriter;
+use super::page_cutter::{GroupSink, PageCutter};
+use super::tree::{Interior, NodeRef, SharedNodes, Tree};
 use crate::progress::Progress;
 
 /// What `lay_out` needs besides the tree.
@@ -44,25 +43,110 @@ pub fn lay_out(
     // Every node is placed once: the interior ones and the leaves the tree
     // references (a collapsed duplicate stays in the list, unreferenced).
     let total_nodes = (tree.interior.len() + tree.leaves.len()) as u64 - tree.collapsed_duplicates;
+    let (root_center, root_radius) = header_sphere(tree.root_sphere(), tree.root.get().is_err());
+    let root = tree.root;
+    // The root forms its own group, quantized against the header sphere.
+    let (root_record, decoded) = encode_node(
+        NodeValues::of(&tree, root),
+        root_center,
+        root_radius,
+        input.layout,
+    );
+    let root_bytes = root_record.pack(input.layout).to_le_bytes();
+    pages.add_group(0, &root_bytes[..node_bytes], 1);
+    progress.begin("layout", total_nodes);
+    progress.advance(1);
+    let mut leaf_sources = Vec::new();
+    if let Ok(l) = root.get()
+        && input.record_leaf_sources
+    {
+        leaf_sources.push((tree.leaves[l].source, 0));
+    }
+    let placed = place_levels(
+        tree,
+        decoded,
+        LevelOptions {
+            layout: input.layout,
+            first_child: 1 + root_record.children.get() as u64,
+            leaf_sources: input.record_leaf_sources.then_some(&mut leaf_sources),
+        },
+        &mut pages,
+        progress,
+    );
+    let mut file = pages.finish().finish(FileHeader {
+        cluster: 0,
+        kind: HierarchyKind::Spheres,
+        attributes: AttributeFlags {
+            color: input.layout.color,
+            normals: input.layout.normals,
+            leaf_geometry: false,
+        },
+        node_bytes: node_bytes as u32,
+        levels: placed.levels,
+        nodes: placed.nodes,
+        leaves: placed.leaves,
+        input_vertices: input.input_vertices,
+        bounds_min: input.bounds_min,
+        bounds_max: input.bounds_max,
+        root_center,
+        root_radius,
+        pages: Vec::new(),
+    })?;
+    file.leaf_sources = leaf_sources;
+    Ok(file)
+}
+
+/// The sphere the header stores for a root of `center` and `radius`: the
+/// root as it will be stored (with its slack when it has children), so the
+/// root's own code is the identity; a zero-size root (one point of radius
+/// 0) still gets a positive scale.
+pub(crate) fn header_sphere((center, radius): (DVec3, f64), has_children: bool) -> (DVec3, f64) {
+    let radius = if radius > 0.0 { radius } else { 1.0 };
+    if has_children {
+        (center, radius * (1.0 + INTERIOR_SLACK) * (1.0 + 1e-12))
+    } else {
+        (center, radius)
+    }
+}
+
+/// What [`place_levels`] needs besides the tree and its root's sphere.
+pub(crate) struct LevelOptions<'a> {
+    pub layout: NodeLayout,
+    /// Breadth-first index of the first child of the root's first child.
+    pub first_child: u64,
+    /// (source vertex, node index) of each leaf placed, when asked for;
+    /// node indices count from the root, which is node 0.
+    pub leaf_sources: Option<&'a mut Vec<(u32, u64)>>,
+}
+
+/// What [`place_levels`] placed, the root included.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Placed {
+    pub nodes: u64,
+    pub leaves: u64,
+    /// Levels, the root's counting as one.
+    pub levels: u32,
+}
+
+/// Quantizes every level of `tree` below its root, whose quantized sphere
+/// is `root_sphere`, into `sink` in breadth-first order. `progress` is
+/// advanced by the nodes placed (the root is the caller's).
+pub(crate) fn place_levels(
+    tree: Tree,
+    root_sphere: (DVec3, f64),
+    options: LevelOptions<'_>,
+    sink: &mut dyn GroupSink,
+    progress: &dyn Progress,
+) -> Placed {
+    let node_bytes = options.layout.bytes() as usize;
+    let layout = options.layout;
+    let mut leaf_sources = options.leaf_sources;
     let Tree {
         leaves: leaf_list,
         mut interior,
         root,
         ..
     } = tree;
-    let (root_center, root_radius) = match root.get() {
-        Ok(l) => (leaf_list[l].position, f64::from(leaf_list[l].radius)),
-        Err(i) => (interior[i].center, interior[i].radius),
-    };
-    // A zero-size root (one point of radius 0) still needs a positive scale.
-    let root_radius = if root_radius > 0.0 { root_radius } else { 1.0 };
-    // The header sphere holds the root as it will be stored (with its slack
-    // when it has children), so the root's own code is the identity.
-    let root_radius = if root.get().is_err() {
-        root_radius * (1.0 + INTERIOR_SLACK) * (1.0 + 1e-12)
-    } else {
-        root_radius
-    };
     // Each interior node's sphere is replaced by its quantized one as soon
     // as it is quantized: its children are quantized against that, and its
     // true sphere is not needed again. So a level is a list of node
@@ -72,32 +156,21 @@ pub fn lay_out(
         nodes: interior.shared(),
     };
 
-    let mut nodes = 0u64;
+    let mut nodes = 1u64;
     let mut leaves = 0u64;
     // Breadth-first index of the next child to be placed.
-    let mut next_child = 1u64;
-    let mut leaf_sources = Vec::new();
-    // The root forms its own group, quantized against the header sphere.
-    // SAFETY: no other thread runs yet.
-    let root_record = unsafe { tree.quantize(root, root_center, root_radius, input.layout) };
-    let root_bytes = root_record.pack(input.layout).to_le_bytes();
-    pages.add_group(0, &root_bytes[..node_bytes], next_child);
-    next_child += root_record.children.get() as u64;
-    nodes += 1;
-    progress.begin("layout", total_nodes);
-    progress.advance(1);
-    let mut nodes_reported = 1;
+    let mut next_child = options.first_child;
     let mut windows = Windows::default();
     match root.get() {
-        Err(node) => windows.next.push(vec![node as u32]),
-        Ok(l) => {
-            leaves += 1;
-            if input.record_leaf_sources {
-                leaf_sources.push((leaf_list[l].source, 0));
-            }
+        Err(node) => {
+            // SAFETY: no other thread runs yet.
+            unsafe { tree.nodes.set_sphere(node, root_sphere.0, root_sphere.1) };
+            windows.next.push(vec![node as u32]);
         }
+        Ok(_) => leaves += 1,
     }
-    // Records are placed in pages in order, on one thread: the only serial
+    let mut nodes_reported = 1;
+    // Records are placed in order, on one thread: the only serial
     // work. Each window is placed while the next one is quantized on the
     // pool's threads, so they are not idle meanwhile. The placing stays on
     // this thread, whose allocator heap holds the memory freed by earlier
@@ -105,23 +178,23 @@ pub fn lay_out(
     // raised the island's peak by 4 %.
     let mut place = |window: Window, placed: Vec<PlacedGroups>| {
         if window.starts_level {
-            pages.end_level();
+            sink.end_level();
         }
         debug_assert_eq!(window.tasks().count(), placed.len());
         for (parents, placed) in window.tasks().zip(placed) {
             let mut offset = 0;
             for (&parent, &(count, grandchildren)) in parents.iter().zip(&placed.groups) {
                 let end = offset + usize::from(count) * node_bytes;
-                pages.add_group(window.depth, &placed.bytes[offset..end], next_child);
+                sink.add_group(window.depth, &placed.bytes[offset..end], next_child);
                 offset = end;
-                if input.record_leaf_sources {
+                if let Some(sources) = leaf_sources.as_deref_mut() {
                     // SAFETY: a read of a parent of this window; the tasks
                     // running now write only children of the next window's
                     // parents, which lie a level or two below it.
                     let node = unsafe { tree.nodes.get(parent as usize) };
                     for (i, child) in node.children[..usize::from(count)].iter().enumerate() {
                         if let Ok(l) = child.get() {
-                            leaf_sources.push((leaf_list[l].source, nodes + i as u64));
+                            sources.push((leaf_list[l].source, nodes + i as u64));
                         }
                     }
                 }
@@ -153,7 +226,7 @@ pub fn lay_out(
                         // written by two tasks or read by one while another
                         // writes it; the placement beside only reads
                         // parents of its own window.
-                        .map(|parents| unsafe { tree.quantize_groups(parents, input.layout) })
+                        .map(|parents| unsafe { tree.quantize_groups(parents, layout) })
                         .collect();
                     (window, placed)
                 });
@@ -174,32 +247,13 @@ pub fn lay_out(
         }
         pending = quantized;
     }
-    drop(tree);
-    drop(leaf_list);
-    drop(interior);
-    let mut file = pages.finish().finish(FileHeader {
-        cluster: 0,
-        kind: HierarchyKind::Spheres,
-        attributes: AttributeFlags {
-            color: input.layout.color,
-            normals: input.layout.normals,
-            leaf_geometry: false,
-        },
-        node_bytes: node_bytes as u32,
+    Placed {
+        nodes,
+        leaves,
         // `depth` is the deepest level's index (the root's is 0); the
         // header counts levels, the root alone being one.
         levels: windows.depth + 1,
-        nodes,
-        leaves,
-        input_vertices: input.input_vertices,
-        bounds_min: input.bounds_min,
-        bounds_max: input.bounds_max,
-        root_center,
-        root_radius,
-        pages: Vec::new(),
-    })?;
-    file.leaf_sources = leaf_sources;
-    Ok(file)
+    }
 }
 
 /// Parents whose sibling groups are quantized per window: enough work to
@@ -386,64 +440,107 @@ impl LayoutTree<'_> {
         parent_radius: f64,
         layout: NodeLayout,
     ) -> NodeRecord {
-        let (center, radius, normal, cone, color, children) = match node.get() {
-            Ok(l) => {
-                let leaf = self.leaves[l];
-                (
-                    leaf.position,
-                    f64::from(leaf.radius),
-                    unpack_normal(leaf.normal),
-                    cone_from_u8(leaf.cone),
-                    leaf.color,
-                    0,
-                )
-            }
-            Err(i) => {
-                // SAFETY: the caller rules out other threads on this node.
-                let n = unsafe { self.nodes.get(i) };
-                (
-                    n.center,
-                    n.radius,
-                    n.normal,
-                    f64::from(n.cone),
-                    n.color,
-                    usize::from(n.child_count),
-                )
-            }
+        let values = match node.get() {
+            Ok(l) => NodeValues::leaf(&self.leaves[l]),
+            // SAFETY: the caller rules out other threads on this node.
+            Err(i) => NodeValues::interior(&unsafe { self.nodes.get(i) }),
         };
-        // An interior node is stored a little larger than its children need, so
-        // that children touching its true boundary still quantize to spheres
-        // inside it (see INTERIOR_SLACK).
-        let stored_radius = if children > 0 {
-            radius * (1.0 + INTERIOR_SLACK)
-        } else {
-            radius
-        };
-        let sphere =
-            sphere_codec::encode_sphere(parent_center, parent_radius, center, stored_radius);
+        let (record, (center, radius)) = encode_node(values, parent_center, parent_radius, layout);
         if let Err(i) = node.get() {
-            let (center, radius) =
-                sphere_codec::decode_sphere(parent_center, parent_radius, sphere);
             // SAFETY: as above.
             unsafe { self.nodes.set_sphere(i, center, radius) };
         }
-        let (normal_code, cone_code) = if layout.normals {
-            encode_orientation(normal, cone)
-        } else {
-            (0, 3)
-        };
-        NodeRecord {
-            sphere,
-            children: ChildCount::new(children).unwrap_or(ChildCount::LEAF),
-            normal: normal_code,
-            cone: cone_code,
-            color: if layout.color {
-                sphere_codec::encode_color(color)
-            } else {
-                0
-            },
+        record
+    }
+}
+
+/// What a node's record is made from, leaf or interior.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct NodeValues {
+    pub center: DVec3,
+    pub radius: f64,
+    pub normal: Vec3,
+    /// Normal-cone half-angle in radians.
+    pub cone: f64,
+    pub color: [u8; 3],
+    pub children: usize,
+}
+
+impl NodeValues {
+    pub(crate) fn leaf(leaf: &Leaf) -> Self {
+        Self {
+            center: leaf.position,
+            radius: f64::from(leaf.radius),
+            normal: unpack_normal(leaf.normal),
+            cone: cone_from_u8(leaf.cone),
+            color: leaf.color,
+            children: 0,
         }
     }
+
+    pub(crate) fn interior(node: &Interior) -> Self {
+        Self {
+            center: node.center,
+            radius: node.radius,
+            normal: node.normal,
+            cone: f64::from(node.cone),
+            color: node.color,
+            children: usize::from(node.child_count),
+        }
+    }
+
+    /// The values of `tree`'s node `node` (before any quantization).
+    fn of(tree: &Tree, node: NodeRef) -> Self {
+        match node.get() {
+            Ok(l) => Self::leaf(&tree.leaves[l]),
+            Err(i) => Self::interior(&tree.interior[i]),
+        }
+    }
+}
+
+/// A node's record, quantized against its parent's quantized sphere, and,
+/// for an interior node, the sphere it decodes to (the frame of its own
+/// children; a leaf's is not decoded).
+pub(crate) fn encode_node(
+    node: NodeValues,
+    parent_center: DVec3,
+    parent_radius: f64,
+    layout: NodeLayout,
+) -> (NodeRecord, (DVec3, f64)) {
+    // An interior node is stored a little larger than its children need, so
+    // that children touching its true boundary still quantize to spheres
+    // inside it (see INTERIOR_SLACK).
+    let stored_radius = if node.children > 0 {
+        node.radius * (1.0 + INTERIOR_SLACK)
+    } else {
+        node.radius
+    };
+    let sphere =
+        sphere_codec::encode_sphere(parent_center, parent_radius, node.center, stored_radius);
+    // Only a parent's decoded sphere is ever used: leaves skip the decode,
+    // which runs once per node of the build.
+    let decoded = if node.children > 0 {
+        sphere_codec::decode_sphere(parent_center, parent_radius, sphere)
+    } else {
+        (node.center, stored_radius)
+    };
+    let (normal_code, cone_code) = if layout.normals {
+        encode_orientation(node.normal, node.cone)
+    } else {
+        (0, 3)
+    };
+    let record = NodeRecord {
+        sphere,
+        children: ChildCount::new(node.children).unwrap_or(ChildCount::LEAF),
+        normal: normal_code,
+        cone: cone_code,
+        color: if layout.color {
+            sphere_codec::encode_color(node.color)
+        } else {
+            0
+        },
+    };
+    (record, decoded)
 }
 
 /// How much larger than its true sphere an interior node is stored.
@@ -469,139 +566,6 @@ fn encode_orientation(normal: Vec3, cone: f64) -> (u16, u8) {
         code,
         sphere_codec::encode_cone(cone + sphere_codec::MAX_NORMAL_ERROR),
     )
-}
-
-/// Accumulates records into pages of at most `page_bytes`, never splitting a
-/// sibling group, ending page 0 on a level boundary.
-struct PageCutter {
-    page_bytes: usize,
-    node_bytes: usize,
-    records: Vec<u8>,
-    page: Option<PageHeader>,
-    /// Page 0's records up to the last complete level.
-    page0_done: bool,
-    page0_level_end: usize,
-    page0_level_count: (u32, u64),
-    /// The pages finished so far.
-    written: PageWriter,
-    next_node: u64,
-}
-
-impl PageCutter {
-    fn new(page_bytes: usize, node_bytes: usize) -> Self {
-        let page_bytes = page_bytes.max(PAGE_HEADER_BYTES + PAGE_CHECKSUM_BYTES + 4 * node_bytes);
-        Self {
-            page_bytes,
-            node_bytes,
-            records: Vec::new(),
-            page: None,
-            page0_done: false,
-            page0_level_end: 0,
-            page0_level_count: (0, 0),
-            written: PageWriter::default(),
-            next_node: 0,
-        }
-    }
-
-    fn capacity(&self) -> usize {
-        self.page_bytes - PAGE_HEADER_BYTES - PAGE_CHECKSUM_BYTES
-    }
-
-    /// Adds one sibling group of packed records at `level`; `first_child`
-    /// is the breadth-first index of its first node's first child.
-    fn add_group(&mut self, level: u32, group: &[u8], first_child: u64) {
-        let group_nodes = (group.len() / self.node_bytes) as u64;
-        if self.page.is_some() && self.records.len() + group.len() > self.capacity() {
-            if self.written.is_empty() {
-                self.flush_page0();
-            } else {
-                self.flush();
-            }
-        }
-        let level = level as u16;
-        let page = self.page.get_or_insert(PageHeader {
-            index: self.written.len() as u32,
-            first_node: self.next_node,
-            first_child,
-            node_count: 0,
-            level_min: level,
-            level_max: level,
-        });
-        page.node_count += group_nodes as u32;
-        page.level_max = level;
-        self.next_node += group_nodes;
-        self.records.extend_from_slice(group);
-    }
-
-    /// Called after each complete level: remembers where page 0 could end.
-    fn end_level(&mut self) {
-        if self.written.is_empty()
-            && !self.page0_done
-            && let Some(p) = &self.page
-        {
-            self.page0_level_end = self.records.len();
-            self.page0_level_count = (u32::from(p.level_max), u64::from(p.node_count));
-        }
-    }
-
-    /// Ends page 0 at the last complete level; what follows starts page 1.
-    fn flush_page0(&mut self) {
-        self.page0_done = true;
-        let Some(page) = self.page.take() else { return };
-        let (level_max, count) = self.page0_level_count;
-        if count == 0 || count == u64::from(page.node_count) {
-            self.page = Some(page);
-            self.flush();
-            return;
-        }
-        let head = PageHeader {
-            node_count: count as u32,
-            level_max: level_max as u16,
-            ..page
-        };
-        let tail_records = self.records.split_off(self.page0_level_end);
-        // The rest of the open page becomes the start of page 1. Its first
-        // child is found by walking the child counts of page 0's records.
-        let first_child = page0_next_child(&self.records, head, self.node_bytes);
-        self.page = Some(head);
-        self.flush();
-        self.records = tail_records;
-        self.page = Some(PageHeader {
-            index: 1,
-            first_node: head.first_node + count,
-            first_child,
-            node_count: page.node_count - count as u32,
-            level_min: level_max as u16 + 1,
-            level_max: page.level_max,
-        });
-        if self.records.len() > self.capacity() {
-            self.flush();
-        }
-    }
-
-    fn flush(&mut self) {
-        let Some(header) = self.page.take() else {
-            return;
-        };
-        self.written.push(&header, &self.records, &[]);
-        self.records.clear();
-    }
-
-    fn finish(mut self) -> PageWriter {
-        self.flush();
-        self.written
-    }
-}
-
-/// The breadth-first index of the first child of the node after page 0.
-fn page0_next_child(records: &[u8], header: PageHeader, node_bytes: usize) -> u64 {
-    let mut next = header.first_child;
-    for chunk in records.chunks_exact(node_bytes) {
-        let mut word = [0u8; 8];
-        word[..node_bytes].copy_from_slice(chunk);
-        next += NodeRecord::child_count(u64::from_le_bytes(word)) as u64;
-    }
-    next
 }
 
 #[cfg(test)]

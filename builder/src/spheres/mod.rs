@@ -7,6 +7,7 @@
 pub mod knn;
 pub mod layout;
 pub mod leaves;
+pub(crate) mod page_cutter;
 pub mod tree;
 
 use std::time::Instant;
@@ -159,14 +160,14 @@ pub fn build_spheres_reporting(
 
 /// What one pass over the leaves learns: their bounds, their smallest
 /// positive radius, and whether any radius needs the floor.
-struct Measured {
-    bounds: tree::Bounds,
-    smallest_radius: f32,
-    needs_floor: bool,
+pub(crate) struct Measured {
+    pub bounds: tree::Bounds,
+    pub smallest_radius: f32,
+    pub needs_floor: bool,
 }
 
 /// Measures the leaves on all threads in one pass.
-fn measure(leaves: &[leaves::Leaf]) -> Measured {
+pub(crate) fn measure(leaves: &[leaves::Leaf]) -> Measured {
     let empty = || Measured {
         bounds: (DVec3::INFINITY, DVec3::NEG_INFINITY),
         smallest_radius: f32::INFINITY,
@@ -198,21 +199,27 @@ fn measure(leaves: &[leaves::Leaf]) -> Measured {
 /// the smallest radius another leaf has, else a millionth of the scene's
 /// extent, else 1 when the scene is a single point: a splat needs a size,
 /// and the quantizer a positive scale.
-fn apply_radius_floor(leaves: &mut [leaves::Leaf], measured: &Measured) {
+pub(crate) fn apply_radius_floor(leaves: &mut [leaves::Leaf], measured: &Measured) {
     if !measured.needs_floor {
         return;
     }
-    let diameter = (measured.bounds.1 - measured.bounds.0).length();
-    let floor = if measured.smallest_radius.is_finite() {
-        measured.smallest_radius
-    } else if diameter > 0.0 {
-        leaves::round_up_f32(diameter * 1e-6)
-    } else {
-        1.0
-    };
+    let floor = radius_floor(measured.smallest_radius, measured.bounds);
     for l in leaves.iter_mut() {
         if l.radius.is_nan() || l.radius <= 0.0 {
             l.radius = floor;
         }
+    }
+}
+
+/// The radius a leaf of zero size gets, from the smallest positive radius
+/// of the scene's leaves (infinite when none has one) and their bounds.
+pub(crate) fn radius_floor(smallest_radius: f32, bounds: tree::Bounds) -> f32 {
+    let diameter = (bounds.1 - bounds.0).length();
+    if smallest_radius.is_finite() {
+        smallest_radius
+    } else if diameter > 0.0 {
+        leaves::round_up_f32(diameter * 1e-6)
+    } else {
+        1.0
     }
 }

@@ -1,6 +1,7 @@
 //! `farfield-server build`: inputs -> scene -> hierarchy -> file.
 
 use std::io::IsTerminal;
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use anyhow::Context;
@@ -10,10 +11,12 @@ use serde_json::json;
 use farfield_builder::bsp::BspOptions;
 use farfield_builder::cubes::CubeOptions;
 use farfield_builder::import::{Params, load_inputs};
-use farfield_builder::kinds::{BuildSettings, Built};
+use farfield_builder::kinds::BuildSettings;
+use farfield_builder::out_of_core::{self, Budget, Plan};
 use farfield_builder::plp::PlpOptions;
-use farfield_builder::{BuildOptions, Progress};
-use farfield_store::{check_target, write_atomic};
+use farfield_builder::{BuildError, BuildOptions, Progress};
+use farfield_protocol::file::HierarchyKind;
+use farfield_store::{check_target, write_atomic, write_atomic_parts};
 use farfield_tools::meters::memory;
 
 use super::{BuildArgs, Report, counted};
@@ -48,6 +51,21 @@ impl Progress for Bar<'_> {
 
     fn advance(&self, done: u64) {
         self.0.inc(done);
+    }
+}
+
+/// A finished build: in memory, or with its pages spilled to disk.
+enum Made {
+    InMemory(farfield_builder::PagedFile),
+    Spilled(out_of_core::Finished),
+}
+
+impl Made {
+    fn header(&self) -> &farfield_protocol::file::FileHeader {
+        match self {
+            Self::InMemory(file) => &file.header,
+            Self::Spilled(f) => &f.file.header,
+        }
     }
 }
 
@@ -89,15 +107,30 @@ pub fn run(args: &BuildArgs) -> anyhow::Result<Report> {
     };
     let started = Instant::now();
     progress.set_message("importing");
-    let scene = load_inputs(&args.inputs, &params)?;
-    let seconds_import = started.elapsed().as_secs_f64();
-    progress.set_message(format!(
-        "building {} vertices",
-        scene.instanced_vertex_count()
-    ));
-    let build_started = Instant::now();
     let builder = farfield_builder::kinds::builder_named(&args.kind)
         .with_context(|| format!("unknown hierarchy kind {:?}", args.kind))?;
+    let budget = Budget {
+        memory: args.memory.unwrap_or_else(out_of_core::default_memory),
+        tmp: match &args.tmp {
+            Some(dir) => dir.clone(),
+            None if store.is_some() => std::env::temp_dir(),
+            None => local
+                .parent()
+                .filter(|p| !p.as_os_str().is_empty())
+                .map_or_else(|| PathBuf::from("."), Path::to_owned),
+        },
+    };
+    // Only spheres are built out of core; other kinds load the scene.
+    let plan = if builder.kind == HierarchyKind::Spheres {
+        out_of_core::plan(&args.inputs, &params, &budget)?
+    } else {
+        Plan::InMemory {
+            scene: load_inputs(&args.inputs, &params)?,
+            note: None,
+        }
+    };
+    let seconds_import = started.elapsed().as_secs_f64();
+    let build_started = Instant::now();
     let settings = BuildSettings {
         page_bytes: args.page_bytes,
         spheres: BuildOptions::default(),
@@ -121,13 +154,52 @@ pub fn run(args: &BuildArgs) -> anyhow::Result<Report> {
             ..BspOptions::default()
         },
     };
-    let Built { file, stats, nodes } = (builder.build)(scene, &settings, &Bar(&progress))
-        .with_context(|| format!("building {}", args.inputs.join(" ")))?;
+    let (built, out_of_core, note) = match plan {
+        Plan::InMemory { scene, note } => {
+            if let Some(note) = &note {
+                progress.suspend(|| eprintln!("note: {note}"));
+            }
+            progress.set_message(format!(
+                "building {} vertices",
+                scene.instanced_vertex_count()
+            ));
+            let built = (builder.build)(scene, &settings, &Bar(&progress))
+                .map(|b| (Made::InMemory(b.file), b.stats, b.nodes));
+            (built, false, note)
+        }
+        Plan::OutOfCore(job) => {
+            progress.set_message(format!(
+                "building {} points out of core (budget {} MiB)",
+                job.points(),
+                budget.memory >> 20
+            ));
+            let built = job
+                .build(&settings.spheres_options(), &Bar(&progress))
+                .and_then(|(finished, stats)| {
+                    let nodes = finished.file.header.nodes;
+                    Ok((
+                        Made::Spilled(finished),
+                        serde_json::to_value(stats)
+                            .map_err(|e| BuildError::Invalid(e.to_string()))?,
+                        nodes,
+                    ))
+                });
+            (built, true, None)
+        }
+    };
+    let (made, stats, nodes) =
+        built.with_context(|| format!("building {}", args.inputs.join(" ")))?;
     let kind = builder.name();
     let seconds_build = build_started.elapsed().as_secs_f64();
     progress.set_style(spinner_style());
     progress.set_message(format!("writing {}", args.out.display()));
-    let mut bytes = write_atomic(&local, &file)?;
+    let mut bytes = match &made {
+        Made::InMemory(file) => write_atomic(&local, file)?,
+        Made::Spilled(f) => write_atomic_parts(&local, &f.file.header.encode(), &f.file.body)?,
+    };
+    let h = made.header().clone();
+    // The spilled pages and their temporary folder go now.
+    drop(made);
     if let Some((bucket, url)) = &store {
         let published = farfield_objects::publish(&local, bucket, &url.key);
         let _ = std::fs::remove_file(&local);
@@ -135,7 +207,6 @@ pub fn run(args: &BuildArgs) -> anyhow::Result<Report> {
     }
     progress.finish_and_clear();
     let seconds = started.elapsed().as_secs_f64();
-    let h = &file.header;
     let json = json!({
         "out": args.out,
         "kind": kind,
@@ -150,6 +221,9 @@ pub fn run(args: &BuildArgs) -> anyhow::Result<Report> {
         "seconds_build": seconds_build,
         "vertices_per_second": h.input_vertices as f64 / seconds,
         "peak_rss_bytes": memory::peak_rss_bytes(),
+        "memory_budget": budget.memory,
+        "out_of_core": out_of_core,
+        "note": note,
         "stats": stats,
     });
     let text = format!(

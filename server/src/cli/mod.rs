@@ -194,6 +194,17 @@ pub struct BuildArgs {
     /// Which hierarchy (each kind's builder says what it is in `--help`).
     #[arg(long, default_value = "spheres", value_parser = kind_names())]
     pub kind: String,
+    /// Spheres: the memory the build may use (4G, 512M, bytes); point
+    /// clouds whose build needs more are built out of core, in chunks
+    /// spilled under `--tmp` (default: half the machine's or the memory
+    /// cgroup's memory).
+    #[arg(long, value_parser = farfield_builder::out_of_core::parse_bytes)]
+    pub memory: Option<u64>,
+    /// Spheres: the folder an out-of-core build's temporary files go under
+    /// (default: the output's folder; for `s3://` outputs, the system's
+    /// temporary folder). They are removed when the build ends.
+    #[arg(long)]
+    pub tmp: Option<PathBuf>,
     /// Cubes: samples per cube-face edge (16 = 4 x 4 pixels of 4 x 4 samples).
     #[arg(long, default_value_t = 16)]
     pub face_samples: usize,

@@ -75,15 +75,45 @@ pub struct Tree {
     pub collapsed_duplicates: u64,
 }
 
+impl Tree {
+    /// The root's true sphere: center and radius.
+    pub fn root_sphere(&self) -> (DVec3, f64) {
+        match self.root.get() {
+            Ok(l) => (self.leaves[l].position, f64::from(self.leaves[l].radius)),
+            Err(i) => (self.interior[i].center, self.interior[i].radius),
+        }
+    }
+}
+
 /// The properties a parent needs of a child, whatever its kind.
-#[derive(Clone, Copy)]
-struct Summary {
-    center: DVec3,
-    radius: f64,
-    normal: DVec3,
-    cone: f64,
-    color: DVec3,
-    leaves: u32,
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Summary {
+    pub center: DVec3,
+    pub radius: f64,
+    pub normal: DVec3,
+    pub cone: f64,
+    pub color: DVec3,
+    pub leaves: u32,
+}
+
+impl Summary {
+    /// The summary of `tree`'s root, as its parent would see it.
+    pub(crate) fn of_root(tree: &Tree) -> Self {
+        match tree.root.get() {
+            Ok(l) => leaf_summary(&tree.leaves[l]),
+            Err(i) => {
+                let n = &tree.interior[i];
+                Self {
+                    center: n.center,
+                    radius: n.radius,
+                    normal: n.normal.as_dvec3(),
+                    cone: f64::from(n.cone),
+                    color: DVec3::from(n.color.map(f64::from)),
+                    leaves: n.leaf_count,
+                }
+            }
+        }
+    }
 }
 
 /// A placeholder for unused slots of fixed arrays of summaries.
@@ -325,7 +355,7 @@ fn combine(children: &[Summary]) -> Summary {
 
 /// The parent node of 2 to 4 children: the sphere around the box of their
 /// spheres, grown until it encloses each child in f64 arithmetic.
-fn parent_of(children: &[Summary], refs: [NodeRef; 4]) -> (Interior, Summary) {
+pub(crate) fn parent_of(children: &[Summary], refs: [NodeRef; 4]) -> (Interior, Summary) {
     let mut lo = DVec3::INFINITY;
     let mut hi = DVec3::NEG_INFINITY;
     for c in children {

@@ -1,0 +1,167 @@
+//! Points spread to their chunks' files, and read back a chunk at a time.
+//!
+//! A record is the point's position (3 x f64: positions stay exact), its
+//! color, a flag byte (bit 0: a halo copy, there only for its neighbours)
+//! and, when the build has them, its normal (3 x f32). Each chunk's records
+//! gather in a buffer that is appended to the chunk's file when full; the
+//! file is opened only for that, so thousands of chunks never hold
+//! thousands of open files.
+
+use std::fs::OpenOptions;
+use std::io::{self, Read, Write};
+use std::path::{Path, PathBuf};
+
+use glam::{DVec3, Vec3};
+
+use super::source::Batch;
+use crate::scene::Rgb8;
+
+/// One chunk's points as read back: its own, then its halo.
+#[derive(Debug, Default)]
+pub(crate) struct ChunkPoints {
+    pub positions: Vec<DVec3>,
+    pub colors: Vec<Rgb8>,
+    pub normals: Vec<Vec3>,
+    /// How many of the points, from the start, are the chunk's own.
+    pub own: usize,
+}
+
+/// The record's size in bytes.
+fn record_bytes(normals: bool) -> usize {
+    24 + 4 + if normals { 12 } else { 0 }
+}
+
+/// Writes points to their chunks' files.
+pub(crate) struct Spreader {
+    paths: Vec<PathBuf>,
+    buffers: Vec<Vec<u8>>,
+    buffer_bytes: usize,
+    colors: bool,
+    normals: bool,
+    /// Records written, own and halo.
+    pub(crate) written: u64,
+    pub(crate) halo: u64,
+}
+
+impl Spreader {
+    /// `paths`: a file per chunk (made by the first append); `buffer_bytes`
+    /// per chunk before it is written out.
+    pub(crate) fn new(
+        paths: Vec<PathBuf>,
+        buffer_bytes: usize,
+        colors: bool,
+        normals: bool,
+    ) -> Self {
+        let buffers = (0..paths.len()).map(|_| Vec::new()).collect();
+        Self {
+            paths,
+            buffers,
+            buffer_bytes: buffer_bytes.max(record_bytes(normals)),
+            colors,
+            normals,
+            written: 0,
+            halo: 0,
+        }
+    }
+
+    /// Adds the `i`th point of `batch` to `chunk` (as a halo copy when
+    /// `halo`).
+    pub(crate) fn add(
+        &mut self,
+        chunk: u32,
+        batch: &Batch<'_>,
+        i: usize,
+        halo: bool,
+    ) -> io::Result<()> {
+        let buffer = &mut self.buffers[chunk as usize];
+        for v in batch.positions[i].to_array() {
+            buffer.extend_from_slice(&v.to_le_bytes());
+        }
+        let rgb = match (self.colors, batch.colors) {
+            (true, Some(c)) => c[i],
+            _ => [0; 3],
+        };
+        buffer.extend_from_slice(&rgb);
+        buffer.push(u8::from(halo));
+        if self.normals {
+            let n = batch.normals.map_or(Vec3::Z, |ns| ns[i]);
+            for v in n.to_array() {
+                buffer.extend_from_slice(&v.to_le_bytes());
+            }
+        }
+        self.written += 1;
+        self.halo += u64::from(halo);
+        if buffer.len() >= self.buffer_bytes {
+            self.flush(chunk as usize)?;
+        }
+        Ok(())
+    }
+
+    fn flush(&mut self, chunk: usize) -> io::Result<()> {
+        let buffer = &mut self.buffers[chunk];
+        if buffer.is_empty() {
+            return Ok(());
+        }
+        let mut file = OpenOptions::new()
+            .create(true)
+            .append(true)
+            .open(&self.paths[chunk])?;
+        file.write_all(buffer)?;
+        buffer.clear();
+        Ok(())
+    }
+
+    /// Writes out every buffer.
+    pub(crate) fn finish(mut self) -> io::Result<()> {
+        for chunk in 0..self.paths.len() {
+            self.flush(chunk)?;
+            self.buffers[chunk] = Vec::new();
+        }
+        Ok(())
+    }
+}
+
+/// Reads a chunk's file back, its own points first; the file is removed.
+pub(crate) fn read_chunk(path: &Path, colors: bool, normals: bool) -> io::Result<ChunkPoints> {
+    let mut bytes = Vec::new();
+    std::fs::File::open(path)?.read_to_end(&mut bytes)?;
+    std::fs::remove_file(path)?;
+    let size = record_bytes(normals);
+    if bytes.len() % size != 0 {
+        return Err(io::Error::other(format!(
+            "{}: a chunk file of {} bytes is not whole records",
+            path.display(),
+            bytes.len()
+        )));
+    }
+    let count = bytes.len() / size;
+    let mut own = ChunkPoints::default();
+    let mut halo = ChunkPoints::default();
+    own.positions.reserve(count);
+    for record in bytes.chunks_exact(size) {
+        let f64_at =
+            |at: usize| f64::from_le_bytes(record[at..at + 8].try_into().unwrap_or_default());
+        let f32_at =
+            |at: usize| f32::from_le_bytes(record[at..at + 4].try_into().unwrap_or_default());
+        let into = if record[27] & 1 != 0 {
+            &mut halo
+        } else {
+            &mut own
+        };
+        into.positions
+            .push(DVec3::new(f64_at(0), f64_at(8), f64_at(16)));
+        if colors {
+            into.colors.push([record[24], record[25], record[26]]);
+        }
+        if normals {
+            into.normals
+                .push(Vec3::new(f32_at(28), f32_at(32), f32_at(36)));
+        }
+    }
+    drop(bytes);
+    own.own = own.positions.len();
+    own.positions.append(&mut halo.positions);
+    own.colors.append(&mut halo.colors);
+    own.normals.append(&mut halo.normals);
+    Ok(own)
+}
