@@ -380,3 +380,117 @@ fn a_cloud_builds_inside_a_cgroup_smaller_than_its_in_memory_build_needs() {
     let scene = SceneFile::open(&out).expect("open");
     assert_eq!(scene.survey_pages().corrupt.len(), 0);
 }
+
+/// A build on many machines: 3 parts (`build --subset I/3`, built in any
+/// order) merged are the whole out-of-core build with the same budget,
+/// byte for byte, and within 1 % of the in-memory build's nodes; the
+/// parts are left as they were. Parts that are not the N parts of one
+/// build are refused, each with its reason.
+#[test]
+fn parts_built_apart_and_merged_are_the_whole_build() {
+    let dir = scratch("chunked-parts");
+    let input = tiles(&dir, 40_000, 3);
+    let whole = dir.join("whole.ff");
+    let report = build(&input, &whole, &["--memory", "1"]);
+    assert_eq!(report["out_of_core"], true);
+    let memory = build(&input, &dir.join("memory.ff"), &[]);
+    let part = |i: u32| dir.join(format!("part{i}"));
+    for i in [2, 3, 1] {
+        let r = build(
+            &input,
+            &part(i),
+            &["--memory", "1", "--subset", &format!("{i}/3")],
+        );
+        assert_eq!(r["part"]["chunks"], report["stats"]["chunks"], "{r}");
+        assert!(r["part"]["part_points"].as_u64().unwrap() > 0, "{r}");
+    }
+    let merged = dir.join("merged.ff");
+    let parts = |order: &[u32]| -> Vec<String> {
+        order
+            .iter()
+            .map(|&i| part(i).display().to_string())
+            .collect()
+    };
+    let merge = |order: &[u32], out: &Path| {
+        let mut args = vec!["merge".to_string()];
+        args.extend(parts(order));
+        args.extend(["--out".into(), out.display().to_string(), "--json".into()]);
+        crate::cli(&args.iter().map(String::as_str).collect::<Vec<_>>())
+    };
+    let r = merge(&[3, 1, 2], &merged).expect("merge").json;
+    assert_eq!(
+        std::fs::read(&merged).unwrap(),
+        std::fs::read(&whole).unwrap(),
+        "the merged parts are not the whole build"
+    );
+    let nodes = |r: &serde_json::Value| r["stats"]["nodes"].as_f64().unwrap();
+    let ratio = nodes(&r) / nodes(&memory);
+    assert!(
+        (0.99..1.01).contains(&ratio),
+        "nodes {} against {}",
+        nodes(&r),
+        nodes(&memory)
+    );
+    // The parts are as they were: merged again, the same file.
+    let again = dir.join("again.ff");
+    merge(&[1, 2, 3], &again).expect("merge again");
+    assert_eq!(
+        std::fs::read(&again).unwrap(),
+        std::fs::read(&whole).unwrap()
+    );
+
+    let e = format!("{:#}", merge(&[1, 3], &dir.join("refused.ff")).unwrap_err());
+    assert!(e.contains("part 2/3 is missing"), "{e}");
+    let e = format!(
+        "{:#}",
+        merge(&[1, 2, 2, 3], &dir.join("refused.ff")).unwrap_err()
+    );
+    assert!(e.contains("again"), "{e}");
+    // A part of another build: other points.
+    let other_input = tiles(&dir, 30_000, 3);
+    let other = dir.join("other2");
+    build(&other_input, &other, &["--memory", "1", "--subset", "2/3"]);
+    let mut args = vec!["merge".to_string(), part(1).display().to_string()];
+    args.extend([other.display().to_string(), part(3).display().to_string()]);
+    args.extend(["--out".into(), dir.join("refused.ff").display().to_string()]);
+    let e = format!(
+        "{:#}",
+        crate::cli(&args.iter().map(String::as_str).collect::<Vec<_>>()).unwrap_err()
+    );
+    assert!(e.contains("another build"), "{e}");
+    // Not a part at all; a part's folder taken; a subset out of range; a mesh.
+    let empty = dir.join("empty");
+    std::fs::create_dir_all(&empty).unwrap();
+    let mut args = vec!["merge".to_string(), empty.display().to_string()];
+    args.extend(["--out".into(), dir.join("refused.ff").display().to_string()]);
+    let e = format!(
+        "{:#}",
+        crate::cli(&args.iter().map(String::as_str).collect::<Vec<_>>()).unwrap_err()
+    );
+    assert!(e.contains("not a finished part"), "{e}");
+    for (extra, why) in [
+        (vec!["--subset", "1/3"], "already holds a part"),
+        (vec!["--subset", "4/3"], "I/N"),
+    ] {
+        let mut args = vec!["build", input.to_str().unwrap(), "--out"];
+        let out = part(1).display().to_string();
+        args.push(&out);
+        args.extend(extra);
+        let e = format!("{:#}", crate::cli(&args).unwrap_err());
+        assert!(e.contains(why), "{e}");
+    }
+    let e = format!(
+        "{:#}",
+        crate::cli(&[
+            "build",
+            "gen:tree",
+            "--subset",
+            "1/2",
+            "--out",
+            dir.join("mesh-part").to_str().unwrap()
+        ])
+        .unwrap_err()
+    );
+    assert!(e.contains("not a point cloud"), "{e}");
+    assert!(!dir.join("refused.ff").exists());
+}

@@ -223,11 +223,13 @@ pub(crate) struct ChunkLevels {
     pub levels: Vec<(u64, u64)>,
 }
 
-/// Rebuilds the chunk's subtree from `leaves_path` (removed after) and
-/// quantizes it below its root, whose quantized sphere is `root_sphere`,
-/// into level files; returns what was placed, the root included.
+/// Rebuilds the chunk's subtree from `leaves_path` (removed after when
+/// `remove`) and quantizes it below its root, whose quantized sphere is
+/// `root_sphere`, into level files; returns what was placed, the root
+/// included.
 pub(crate) fn lay_out_chunk(
     leaves_path: &Path,
+    remove: bool,
     fix: &RadiusFix,
     root_sphere: (DVec3, f64),
     layout: NodeLayout,
@@ -235,7 +237,9 @@ pub(crate) fn lay_out_chunk(
     records_path: PathBuf,
 ) -> io::Result<(ChunkLevels, Placed)> {
     let tree = chunk_tree(leaves_path, fix)?;
-    std::fs::remove_file(leaves_path)?;
+    if remove {
+        std::fs::remove_file(leaves_path)?;
+    }
     let mut sink = LevelFiles {
         groups: BufWriter::with_capacity(1 << 16, File::create(&groups_path)?),
         records: BufWriter::with_capacity(1 << 20, File::create(&records_path)?),

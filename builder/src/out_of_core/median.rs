@@ -51,10 +51,21 @@ impl RadiusMedian {
         Ok(())
     }
 
+    /// Counts the radii a chunk's `add` wrote to `path` before (a part of
+    /// a build made elsewhere).
+    pub(crate) fn add_file(&mut self, path: &Path) -> io::Result<()> {
+        for_each_radius(path, &mut |r| {
+            self.bins[key(r)] += 1;
+            self.count += 1;
+        })?;
+        self.files.push(path.to_owned());
+        Ok(())
+    }
+
     /// The median as the in-memory build takes it (the element of rank
     /// count / 2), or `None` when no radius is positive; the files are
-    /// removed.
-    pub(crate) fn median(self) -> io::Result<Option<f64>> {
+    /// removed when `remove`.
+    pub(crate) fn median(self, remove: bool) -> io::Result<Option<f64>> {
         if self.count == 0 {
             return Ok(None);
         }
@@ -70,26 +81,33 @@ impl RadiusMedian {
         }
         let mut within = Vec::with_capacity(self.bins[bin] as usize);
         for path in &self.files {
-            let mut input = BufReader::with_capacity(1 << 16, File::open(path)?);
-            let mut word = [0u8; 8];
-            loop {
-                match input.read_exact(&mut word) {
-                    Ok(()) => {}
-                    Err(e) if e.kind() == io::ErrorKind::UnexpectedEof => break,
-                    Err(e) => return Err(e),
-                }
-                let r = f64::from_le_bytes(word);
+            for_each_radius(path, &mut |r| {
                 if key(r) == bin {
                     within.push(r);
                 }
+            })?;
+            if remove {
+                std::fs::remove_file(path)?;
             }
-            std::fs::remove_file(path)?;
         }
         let at = (rank - below) as usize;
         if at >= within.len() {
             return Err(io::Error::other("the radii files changed during the build"));
         }
         Ok(Some(*within.select_nth_unstable_by(at, f64::total_cmp).1))
+    }
+}
+
+/// Each radius of a radii file, in order.
+fn for_each_radius(path: &Path, each: &mut dyn FnMut(f64)) -> io::Result<()> {
+    let mut input = BufReader::with_capacity(1 << 16, File::open(path)?);
+    let mut word = [0u8; 8];
+    loop {
+        match input.read_exact(&mut word) {
+            Ok(()) => each(f64::from_le_bytes(word)),
+            Err(e) if e.kind() == io::ErrorKind::UnexpectedEof => return Ok(()),
+            Err(e) => return Err(e),
+        }
     }
 }
 
@@ -119,12 +137,18 @@ mod tests {
         }
         let mid = all.len() / 2;
         let expected = *all.select_nth_unstable_by(mid, f64::total_cmp).1;
-        assert_eq!(median.median().unwrap(), Some(expected));
+        // Counted again from the files, as a merge of parts does.
+        let mut again = RadiusMedian::new();
+        for f in 0..7 {
+            again.add_file(&dir.join(format!("r{f}"))).unwrap();
+        }
+        assert_eq!(again.median(false).unwrap(), Some(expected));
+        assert_eq!(median.median(true).unwrap(), Some(expected));
         assert!(
             std::fs::read_dir(&dir).unwrap().next().is_none(),
             "files left"
         );
         let _ = std::fs::remove_dir(&dir);
-        assert_eq!(RadiusMedian::new().median().unwrap(), None);
+        assert_eq!(RadiusMedian::new().median(true).unwrap(), None);
     }
 }

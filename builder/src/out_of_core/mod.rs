@@ -32,8 +32,11 @@
 mod budget;
 mod chunk;
 mod grid;
+mod join;
 mod median;
 mod merge;
+mod part;
+mod phases;
 mod source;
 mod spread;
 mod temp;
@@ -42,20 +45,16 @@ mod tests;
 mod top;
 
 use std::path::PathBuf;
-use std::time::Instant;
-
-use farfield_protocol::file::{AttributeFlags, FileHeader, HierarchyKind};
-use farfield_protocol::sphere_codec::NodeLayout;
-use glam::DVec3;
 
 use crate::BuildError;
 use crate::import::{ImportError, Params, expand_folders, las, load_input};
-use crate::page_writer::{SpillError, SpilledFile};
+use crate::page_writer::SpilledFile;
 use crate::progress::Progress;
 use crate::scene::{Primitives, Scene};
 use crate::spheres::{BuildOptions, BuildStats};
 
 pub use budget::{default_memory, parse_bytes};
+pub use part::{MANIFEST, PartStats, Subset, merge};
 pub(crate) use source::PointSource;
 
 /// Bytes of memory an in-memory sphere build takes per point at its peak
@@ -126,26 +125,7 @@ pub struct Job {
 /// whole files); if the points' in-memory build would pass the budget and
 /// every input is a point cloud, the build goes out of core.
 pub fn plan(inputs: &[String], params: &Params, budget: &Budget) -> Result<Plan, ImportError> {
-    // Each input in order: a LAS file counted from its header, or a scene
-    // loaded whole.
-    let mut entries: Vec<Result<PointSource, Scene>> = Vec::new();
-    for input in expand_folders(inputs)? {
-        let path = std::path::Path::new(&input);
-        let extension = path
-            .extension()
-            .and_then(|e| e.to_str())
-            .map(str::to_ascii_lowercase);
-        if !input.starts_with("gen:") && matches!(extension.as_deref(), Some("las" | "laz")) {
-            let info = las::survey(path)?;
-            entries.push(Ok(PointSource::Las {
-                path: path.to_owned(),
-                info,
-                wide: false,
-            }));
-        } else {
-            entries.push(Err(load_input(&input, params)?));
-        }
-    }
+    let entries = survey_inputs(inputs, params)?;
     let points: u64 = entries
         .iter()
         .map(|e| match e {
@@ -154,21 +134,16 @@ pub fn plan(inputs: &[String], params: &Params, budget: &Budget) -> Result<Plan,
         })
         .sum();
     let need = points.saturating_mul(IN_MEMORY_BYTES_PER_POINT);
-    let mesh = entries.iter().find_map(|e| {
-        e.as_ref()
-            .err()?
-            .geometries
-            .iter()
-            .find(|g| !matches!(g.primitives, Primitives::Points))
+    let mesh = first_mesh(&entries);
+    let note = (need > budget.memory).then(|| {
+        mesh.as_ref().map(|name| {
+            format!(
+                "{name} is not a point cloud: built in memory (about {} MiB, over the budget of {} MiB); only point clouds are built out of core yet",
+                need >> 20,
+                budget.memory >> 20
+            )
+        })
     });
-    let note = (need > budget.memory).then(|| mesh.map(|g| {
-        format!(
-            "{} is not a point cloud: built in memory (about {} MiB, over the budget of {} MiB); only point clouds are built out of core yet",
-            g.name,
-            need >> 20,
-            budget.memory >> 20
-        )
-    }));
     if need <= budget.memory || mesh.is_some() {
         // Loaded whole, in the order given, as `load_inputs` does.
         let mut scene = Scene::default();
@@ -188,6 +163,68 @@ pub fn plan(inputs: &[String], params: &Params, budget: &Budget) -> Result<Plan,
             note: note.flatten(),
         });
     }
+    Ok(Plan::OutOfCore(job_of(entries, budget)))
+}
+
+/// An out-of-core job for `inputs` whatever their size (a subset of a
+/// build on many machines is always one); an error for an input that is
+/// not a point cloud.
+pub fn plan_out_of_core(
+    inputs: &[String],
+    params: &Params,
+    budget: &Budget,
+) -> Result<Job, ImportError> {
+    let entries = survey_inputs(inputs, params)?;
+    if let Some(name) = first_mesh(&entries) {
+        return Err(ImportError::Malformed {
+            path: PathBuf::from(name),
+            element: "geometry".into(),
+            message: "not a point cloud: only point clouds are built in parts".into(),
+        });
+    }
+    Ok(job_of(entries, budget))
+}
+
+/// Each input in order: a LAS file counted from its header, or a scene
+/// loaded whole.
+fn survey_inputs(
+    inputs: &[String],
+    params: &Params,
+) -> Result<Vec<Result<PointSource, Scene>>, ImportError> {
+    let mut entries = Vec::new();
+    for input in expand_folders(inputs)? {
+        let path = std::path::Path::new(&input);
+        let extension = path
+            .extension()
+            .and_then(|e| e.to_str())
+            .map(str::to_ascii_lowercase);
+        if !input.starts_with("gen:") && matches!(extension.as_deref(), Some("las" | "laz")) {
+            let info = las::survey(path)?;
+            entries.push(Ok(PointSource::Las {
+                path: path.to_owned(),
+                info,
+                wide: false,
+            }));
+        } else {
+            entries.push(Err(load_input(&input, params)?));
+        }
+    }
+    Ok(entries)
+}
+
+/// The name of the first loaded geometry that is not a point cloud.
+fn first_mesh(entries: &[Result<PointSource, Scene>]) -> Option<String> {
+    entries.iter().find_map(|e| {
+        e.as_ref()
+            .err()?
+            .geometries
+            .iter()
+            .find(|g| !matches!(g.primitives, Primitives::Points))
+            .map(|g| g.name.clone())
+    })
+}
+
+fn job_of(entries: Vec<Result<PointSource, Scene>>, budget: &Budget) -> Job {
     let mut sources = Vec::new();
     for entry in entries {
         match entry {
@@ -197,10 +234,10 @@ pub fn plan(inputs: &[String], params: &Params, budget: &Budget) -> Result<Plan,
             Err(scene) => sources.extend(placed_clouds(scene)),
         }
     }
-    Ok(Plan::OutOfCore(Job {
+    Job {
         sources,
         budget: budget.clone(),
-    }))
+    }
 }
 
 /// A scene of point clouds as sources, one per instance, placed.
@@ -269,281 +306,43 @@ impl Job {
         options: &BuildOptions,
         progress: &dyn Progress,
     ) -> Result<(Finished, OutOfCoreStats), BuildError> {
-        let io = |e: std::io::Error| BuildError::Invalid(format!("temporary files: {e}"));
-        let colors = self.sources.iter().any(PointSource::has_color);
-        let normals = self.sources.iter().all(PointSource::has_normals);
-        let layout = NodeLayout {
-            normals: true,
-            color: colors,
-        };
-        let points = self.points();
-        let temp = temp::TempDir::create(&self.budget.tmp).map_err(|e| {
-            BuildError::Invalid(format!(
-                "{}: cannot make the temporary folder: {e}",
-                self.budget.tmp.display()
-            ))
-        })?;
-
-        // 1. Count. The grid needs bounds first: LAS headers give theirs,
-        // clouds in memory are measured.
-        let started = Instant::now();
-        let mut hint = (DVec3::INFINITY, DVec3::NEG_INFINITY);
-        for s in &self.sources {
-            let b = match s {
-                PointSource::Las { info, .. } => info.bounds,
-                PointSource::Memory(g) => g
-                    .positions
-                    .iter()
-                    .fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(lo, hi), &p| {
-                        (lo.min(p), hi.max(p))
-                    }),
-            };
-            hint = (hint.0.min(b.0), hint.1.max(b.1));
-        }
-        if !(hint.0.is_finite() && hint.1.is_finite()) {
-            hint = (DVec3::ZERO, DVec3::ZERO);
-        }
-        let spread_buffers = SPREAD_BUFFERS.min(self.budget.memory / 8);
-        // Held beside a chunk: the counting grid, the spread's buffers, the
-        // median's bins. Pages are written to disk as they are made.
-        let reserved = (u64::from(grid::MAX_SIDE).pow(3) * 4).min(points.saturating_mul(8))
-            + spread_buffers
-            + MEDIAN_BYTES;
-        let chunk_points = (self.budget.memory.saturating_sub(reserved) / CHUNK_BYTES_PER_POINT)
-            .max(MIN_CHUNK_POINTS);
-        let grid = grid::Grid::new(hint, points, chunk_points);
-        let mut counts = vec![0u32; grid.cells()];
-        let mut counted = 0u64;
-        progress.begin("count", points);
-        for s in &mut self.sources {
-            s.scan(&mut |positions| {
-                for &p in positions {
-                    let c = &mut counts[grid.cell_of(p)];
-                    *c = c.checked_add(1).ok_or_else(|| ImportError::Malformed {
-                        path: PathBuf::from("input"),
-                        element: "points".into(),
-                        message: "over 4 billion points in one cell of the counting grid".into(),
-                    })?;
-                }
-                counted += positions.len() as u64;
-                progress.advance(positions.len() as u64);
-                Ok(())
-            })
-            .map_err(|e| BuildError::Invalid(e.to_string()))?;
-        }
-        if counted == 0 {
-            return Err(BuildError::Empty);
-        }
-        let seconds_count = started.elapsed().as_secs_f64();
+        let temp =
+            temp::TempDir::create(&self.budget.tmp).map_err(|e| temp_error(&self.budget.tmp, e))?;
+        let counted = phases::count(&mut self.sources, &self.budget, progress)?;
         checkpoint("count");
-
-        // 2. Spread.
-        let started = Instant::now();
-        let grid_side = grid.side();
-        let chunks = grid::Chunks::cut(grid, counts, chunk_points);
-        let chunk_files: Vec<PathBuf> = (0..chunks.len())
-            .map(|c| temp.file(&format!("chunk-{c}.points")))
-            .collect();
-        let buffer = (spread_buffers / chunks.len().max(1) as u64).clamp(4 << 10, 4 << 20);
-        let mut spreader =
-            spread::Spreader::new(chunk_files.clone(), buffer as usize, colors, normals);
-        progress.begin("spread", counted);
-        let mut spread_error: Option<std::io::Error> = None;
-        for s in &self.sources {
-            s.for_each(colors, &mut |batch| {
-                for i in 0..batch.positions.len() {
-                    let (own, halo) = chunks.place(batch.positions[i]);
-                    if own == u32::MAX {
-                        return Err(ImportError::Malformed {
-                            path: PathBuf::from("input"),
-                            element: "points".into(),
-                            message: "an input changed while it was being built".into(),
-                        });
-                    }
-                    let written = std::iter::once((own, false))
-                        .chain(halo.iter().map(|&h| (h, true)))
-                        .try_for_each(|(c, is_halo)| spreader.add(c, &batch, i, is_halo));
-                    if let Err(e) = written {
-                        spread_error = Some(e);
-                        return Err(ImportError::Malformed {
-                            path: temp.path().to_owned(),
-                            element: "chunk files".into(),
-                            message: "cannot be written".into(),
-                        });
-                    }
-                }
-                progress.advance(batch.positions.len() as u64);
-                Ok(())
-            })
-            .map_err(|e| match spread_error.take() {
-                Some(io_error) => io(io_error),
-                None => BuildError::Invalid(e.to_string()),
-            })?;
-        }
-        let halo_points = spreader.halo;
-        let spread_total = spreader.written;
-        spreader.finish().map_err(io)?;
-        let chunk_count = chunks.len();
-        drop(chunks);
-        if spread_total - halo_points != counted {
-            return Err(BuildError::Invalid(
-                "an input changed while it was being built (its points were read twice)".into(),
-            ));
-        }
-        let seconds_spread = started.elapsed().as_secs_f64();
+        let spread = phases::spread(&self.sources, &counted, &temp, &|_| true, progress)?;
         checkpoint("spread");
-
-        // 3. Chunks: sized one at a time, every core on each.
-        let started = Instant::now();
-        progress.begin("chunks", counted);
-        let mut median = median::RadiusMedian::new();
-        let mut sized = Vec::with_capacity(chunk_count);
-        let mut sized_chunks = Vec::with_capacity(chunk_count);
-        for (c, path) in chunk_files.iter().enumerate() {
-            if !path.exists() {
-                continue;
-            }
-            let points = spread::read_chunk(path, colors, normals).map_err(io)?;
-            let own = points.own as u64;
-            let leaves = temp.file(&format!("chunk-{c}.leaves"));
-            let radii = temp.file(&format!("chunk-{c}.radii"));
-            if let Some(s) =
-                chunk::size_chunk(points, colors, &leaves, &mut median, &radii).map_err(io)?
-            {
-                sized.push(s);
-                sized_chunks.push(c);
-            }
-            progress.advance(own);
-        }
-        if sized.is_empty() {
-            return Err(BuildError::Empty);
-        }
-        // The cloud's radii are capped and floored as the in-memory build
-        // does, by the whole cloud's median and smallest radius.
-        let fix = chunk::RadiusFix::new(median.median().map_err(io)?, &sized);
-        let mut roots = Vec::with_capacity(sized.len());
-        for &c in &sized_chunks {
-            roots.push(
-                chunk::chunk_root(&temp.file(&format!("chunk-{c}.leaves")), &fix).map_err(io)?,
-            );
-        }
-        let seconds_chunks = started.elapsed().as_secs_f64();
-        checkpoint("chunks");
-
-        // 4. The levels above the chunks.
-        let started = Instant::now();
-        let top = top::lay_out_top(&roots, layout);
-        let seconds_top = started.elapsed().as_secs_f64();
-        checkpoint("top");
-
-        // 5. Each chunk's levels, below its quantized root.
-        let started = Instant::now();
-        progress.begin("levels", counted);
-        let mut levels: Vec<Option<chunk::ChunkLevels>> = Vec::with_capacity(roots.len());
-        let mut nodes_in_chunks = 0u64;
-        let mut leaves_in_chunks = 0u64;
-        for (r, &c) in sized_chunks.iter().enumerate() {
-            let files = chunk::lay_out_chunk(
-                &temp.file(&format!("chunk-{c}.leaves")),
-                &fix,
-                top.chunk_spheres[r],
-                layout,
-                temp.file(&format!("chunk-{c}.groups")),
-                temp.file(&format!("chunk-{c}.records")),
-            )
-            .map_err(io)?;
-            nodes_in_chunks += files.1.nodes;
-            leaves_in_chunks += files.1.leaves;
-            levels.push(Some(files.0));
-            progress.advance(sized[r].points);
-        }
-        let seconds_levels = started.elapsed().as_secs_f64();
-        checkpoint("levels");
-
-        // 6. Pages.
-        let started = Instant::now();
-        let top_nodes = top
-            .groups
-            .iter()
-            .map(|g| g.members.len() as u64)
-            .sum::<u64>()
-            - roots.len() as u64;
-        let total_nodes = top_nodes + nodes_in_chunks;
-        progress.begin("pages", total_nodes);
-        let node_bytes = layout.bytes() as usize;
-        let merged = merge::merge(
-            &top,
-            &levels,
-            node_bytes,
-            options.page_bytes,
-            &temp.file("pages"),
-            progress,
-        )
-        .map_err(io)?;
-        debug_assert_eq!(merged.nodes, total_nodes);
-        let bounds = sized
-            .iter()
-            .fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(lo, hi), s| {
-                (lo.min(s.bounds.0), hi.max(s.bounds.1))
-            });
-        let (root_center, root_radius) = top.header_sphere;
-        let file = merged
-            .pages
-            .finish_spilled(FileHeader {
-                cluster: 0,
-                kind: HierarchyKind::Spheres,
-                attributes: AttributeFlags {
-                    color: layout.color,
-                    normals: layout.normals,
-                    leaf_geometry: false,
-                },
-                node_bytes: node_bytes as u32,
-                levels: merged.levels,
-                nodes: merged.nodes,
-                leaves: leaves_in_chunks,
-                input_vertices: counted,
-                bounds_min: bounds.0,
-                bounds_max: bounds.1,
-                root_center,
-                root_radius,
-                pages: Vec::new(),
-            })
-            .map_err(|e| match e {
-                SpillError::Format(e) => BuildError::Format(e),
-                SpillError::Io(e) => io(e),
-            })?;
-        let seconds_pages = started.elapsed().as_secs_f64();
-        checkpoint("pages");
-        let build = BuildStats {
-            input_vertices: counted,
-            input_primitives: counted,
-            unreferenced_vertices: 0,
-            collapsed_duplicates: roots.iter().map(|r| r.collapsed).sum(),
-            leaves: file.header.leaves,
-            nodes: file.header.nodes,
-            levels: file.header.levels,
-            pages: file.header.pages.len(),
-            has_color: layout.color,
-            has_normals: layout.normals,
-            seconds_leaves: seconds_count + seconds_spread + seconds_chunks,
-            seconds_tree: seconds_top,
-            seconds_layout: seconds_levels + seconds_pages,
-        };
+        let sized = phases::size(&spread, &counted, temp.path(), progress)?;
+        let (file, joined) = join::join(sized, counted.layout, options, &temp, true, progress)?;
+        let build = counted.stats(&joined, file.header.pages.len());
         Ok((
             Finished { file, _temp: temp },
             OutOfCoreStats {
                 build,
-                chunks: roots.len(),
-                chunk_points,
-                halo_points,
-                grid_side,
-                seconds_count,
-                seconds_spread,
-                seconds_chunks,
-                seconds_top,
-                seconds_levels,
-                seconds_pages,
+                chunks: joined.chunks,
+                chunk_points: counted.chunk_points,
+                halo_points: spread.halo_points,
+                grid_side: counted.grid_side,
+                seconds_count: counted.seconds,
+                seconds_spread: spread.seconds,
+                seconds_chunks: joined.seconds_sizes + joined.seconds_roots,
+                seconds_top: joined.seconds_top,
+                seconds_levels: joined.seconds_levels,
+                seconds_pages: joined.seconds_pages,
             },
         ))
     }
+}
+
+/// The error of a temporary folder that cannot be made.
+fn temp_error(dir: &std::path::Path, e: std::io::Error) -> BuildError {
+    BuildError::Invalid(format!(
+        "{}: cannot make the temporary folder: {e}",
+        dir.display()
+    ))
+}
+
+/// The error of a temporary file that cannot be written or read.
+fn io_error(e: std::io::Error) -> BuildError {
+    BuildError::Invalid(format!("temporary files: {e}"))
 }

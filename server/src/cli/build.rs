@@ -12,7 +12,7 @@ use farfield_builder::bsp::BspOptions;
 use farfield_builder::cubes::CubeOptions;
 use farfield_builder::import::{Params, load_inputs};
 use farfield_builder::kinds::BuildSettings;
-use farfield_builder::out_of_core::{self, Budget, Plan};
+use farfield_builder::out_of_core::{self, Budget, Plan, Subset};
 use farfield_builder::plp::PlpOptions;
 use farfield_builder::{BuildError, BuildOptions, Progress};
 use farfield_protocol::file::HierarchyKind;
@@ -30,7 +30,95 @@ fn spinner_style() -> ProgressStyle {
 
 /// The terminal's progress bar as the builder's [`Progress`]: a step's
 /// name, a bar, its percentage and the time it has left.
-struct Bar<'a>(&'a ProgressBar);
+pub(super) struct Bar<'a>(pub(super) &'a ProgressBar);
+
+/// A spinner on a terminal, unless the report is JSON; hidden otherwise.
+pub(super) fn progress_bar(json: bool) -> ProgressBar {
+    if json || !std::io::stderr().is_terminal() {
+        ProgressBar::hidden()
+    } else {
+        let bar = ProgressBar::new_spinner();
+        bar.set_style(spinner_style());
+        bar.enable_steady_tick(std::time::Duration::from_millis(100));
+        bar
+    }
+}
+
+/// The memory budget and temporary folder `args` ask for.
+fn budget_of(args: &BuildArgs, local: &Path, remote: bool) -> Budget {
+    Budget {
+        memory: args.memory.unwrap_or_else(out_of_core::default_memory),
+        tmp: match &args.tmp {
+            Some(dir) => dir.clone(),
+            None if remote => std::env::temp_dir(),
+            None => local
+                .parent()
+                .filter(|p| !p.as_os_str().is_empty())
+                .map_or_else(|| PathBuf::from("."), Path::to_owned),
+        },
+    }
+}
+
+/// `build --subset I/N`: part I of a build on many machines, into the
+/// folder `--out` (see `farfield-server merge`).
+fn run_subset(
+    args: &BuildArgs,
+    subset: Subset,
+    params: &Params,
+    progress: &ProgressBar,
+) -> anyhow::Result<Report> {
+    anyhow::ensure!(
+        args.kind == "spheres",
+        "--subset builds spheres only, not {}",
+        args.kind
+    );
+    let budget = Budget {
+        // A part's temporary files go beside it, not inside it.
+        tmp: args.tmp.clone().unwrap_or_else(|| {
+            args.out
+                .parent()
+                .filter(|p| !p.as_os_str().is_empty())
+                .map_or_else(|| PathBuf::from("."), Path::to_owned)
+        }),
+        ..budget_of(args, &args.out, false)
+    };
+    let started = Instant::now();
+    let job = out_of_core::plan_out_of_core(&args.inputs, params, &budget)?;
+    let stats = job
+        .build_subset(subset, &args.out, &Bar(progress))
+        .with_context(|| {
+            format!(
+                "building part {}/{} of {}",
+                subset.index,
+                subset.count,
+                args.inputs.join(" ")
+            )
+        })?;
+    progress.finish_and_clear();
+    let seconds = started.elapsed().as_secs_f64();
+    let text = format!(
+        "{}: part {}/{}, {} of {} chunks, {} of {} points, {seconds:.2} s",
+        args.out.display(),
+        subset.index,
+        subset.count,
+        stats.part_chunks,
+        stats.chunks,
+        stats.part_points,
+        stats.points
+    );
+    Ok(Report {
+        json: json!({
+            "out": args.out,
+            "seconds": seconds,
+            "peak_rss_bytes": memory::peak_rss_bytes(),
+            "memory_budget": budget.memory,
+            "part": stats,
+        }),
+        text,
+        exit_code: 0,
+        as_json: args.json,
+    })
+}
 
 impl Progress for Bar<'_> {
     fn begin(&self, step: &'static str, total: u64) {
@@ -71,6 +159,10 @@ impl Made {
 
 pub fn run(args: &BuildArgs) -> anyhow::Result<Report> {
     let params = Params::parse(&args.params).map_err(anyhow::Error::msg)?;
+    if let Some(subset) = args.subset {
+        // A part is a folder, not a scene file: no store, no file target.
+        return run_subset(args, subset, &params, &progress_bar(args.json));
+    }
     // Published to a store: built into a temporary file first (the store
     // is reached before the build, so a wrong address fails at once).
     let store = match args
@@ -97,29 +189,12 @@ pub fn run(args: &BuildArgs) -> anyhow::Result<Report> {
         None => args.out.clone(),
     };
     check_target(&local)?;
-    let progress = if args.json || !std::io::stderr().is_terminal() {
-        ProgressBar::hidden()
-    } else {
-        let bar = ProgressBar::new_spinner();
-        bar.set_style(spinner_style());
-        bar.enable_steady_tick(std::time::Duration::from_millis(100));
-        bar
-    };
+    let progress = progress_bar(args.json);
     let started = Instant::now();
     progress.set_message("importing");
     let builder = farfield_builder::kinds::builder_named(&args.kind)
         .with_context(|| format!("unknown hierarchy kind {:?}", args.kind))?;
-    let budget = Budget {
-        memory: args.memory.unwrap_or_else(out_of_core::default_memory),
-        tmp: match &args.tmp {
-            Some(dir) => dir.clone(),
-            None if store.is_some() => std::env::temp_dir(),
-            None => local
-                .parent()
-                .filter(|p| !p.as_os_str().is_empty())
-                .map_or_else(|| PathBuf::from("."), Path::to_owned),
-        },
-    };
+    let budget = budget_of(args, &local, store.is_some());
     // Only spheres are built out of core; other kinds load the scene.
     let plan = if builder.kind == HierarchyKind::Spheres {
         out_of_core::plan(&args.inputs, &params, &budget)?

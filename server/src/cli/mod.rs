@@ -9,6 +9,7 @@ mod export;
 mod health;
 mod inspect;
 mod lidar_tiles;
+mod merge;
 mod publish;
 mod serve;
 
@@ -56,12 +57,37 @@ pub enum Command {
     /// client takes with `--ca-cert DIR/cert.pem` and a browser after an
     /// exception.
     Cert(CertArgs),
+    /// Join the N parts of a build on many machines (`build --subset I/N`),
+    /// in any order, into one scene file: the whole build, byte for byte.
+    Merge(MergeArgs),
     /// Write generated lidar for benchmarks: a terrain of `--points`
     /// random points with RGB and intensity, as a `--grid` x `--grid`
     /// square of LAS tiles in `--out`, each with its own offset (as surveys
     /// are delivered). Deterministic for a seed; memory does not grow with
     /// the point count.
     LidarTiles(LidarTilesArgs),
+}
+
+#[derive(Debug, clap::Args)]
+pub struct MergeArgs {
+    /// The parts' folders.
+    #[arg(required = true)]
+    pub parts: Vec<PathBuf>,
+    /// The scene file to write, or `s3://bucket/key.ff` to publish it to
+    /// object storage.
+    #[arg(long)]
+    pub out: PathBuf,
+    #[command(flatten)]
+    pub store: StoreArgs,
+    /// Where the merge's temporary files go (default: the output's folder).
+    #[arg(long)]
+    pub tmp: Option<PathBuf>,
+    /// Upper bound on a page's bytes (default 16 KiB).
+    #[arg(long)]
+    pub page_bytes: Option<usize>,
+    /// Print one JSON summary object on stdout and no progress bar.
+    #[arg(long)]
+    pub json: bool,
 }
 
 #[derive(Debug, clap::Args)]
@@ -200,6 +226,12 @@ pub struct BuildArgs {
     /// cgroup's memory).
     #[arg(long, value_parser = farfield_builder::out_of_core::parse_bytes)]
     pub memory: Option<u64>,
+    /// Spheres: build part I of N (`I/N`, I from 1 to N) of a point cloud,
+    /// into the folder `--out`, for a build on many machines: each part
+    /// reads all the inputs but sizes only its own region; `merge` joins
+    /// the N parts into the scene.
+    #[arg(long, value_name = "I/N")]
+    pub subset: Option<farfield_builder::out_of_core::Subset>,
     /// Spheres: the folder an out-of-core build's temporary files go under
     /// (default: the output's folder; for `s3://` outputs, the system's
     /// temporary folder). They are removed when the build ends.
@@ -456,6 +488,7 @@ pub fn run(cli: Cli) -> anyhow::Result<Report> {
         Command::Health(args) => health::run(&args),
         Command::Cert(args) => cert::run(&args),
         Command::LidarTiles(args) => lidar_tiles::run(&args),
+        Command::Merge(args) => merge::run(&args),
     }
 }
 

@@ -1,0 +1,98 @@
+//! `farfield-server merge`: the parts of a build on many machines into one
+//! scene file.
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use anyhow::Context;
+use serde_json::json;
+
+use farfield_builder::BuildOptions;
+use farfield_builder::out_of_core;
+use farfield_store::{check_target, write_atomic_parts};
+use farfield_tools::meters::memory;
+
+use super::build::{Bar, progress_bar};
+use super::{MergeArgs, Report, counted};
+
+pub fn run(args: &MergeArgs) -> anyhow::Result<Report> {
+    // Published to a store: merged into a temporary file first (the store
+    // is reached before the merge, so a wrong address fails at once).
+    let store = match args
+        .out
+        .to_str()
+        .filter(|o| farfield_objects::is_store_url(o))
+    {
+        Some(url) => {
+            let (bucket, url) = args.store.bucket(url, Default::default())?;
+            anyhow::ensure!(
+                !url.key.is_empty(),
+                "{url}: name the object to write (s3://bucket/key.ff)"
+            );
+            match bucket.head(&url.key) {
+                Ok(_) | Err(farfield_objects::RemoteError::NotFound(_)) => {}
+                Err(e) => anyhow::bail!("cannot reach the store: {e}"),
+            }
+            Some((bucket, url))
+        }
+        None => None,
+    };
+    let tmp = args.tmp.clone().unwrap_or_else(|| match &store {
+        Some(_) => std::env::temp_dir(),
+        None => args
+            .out
+            .parent()
+            .filter(|p| !p.as_os_str().is_empty())
+            .map_or_else(|| PathBuf::from("."), Path::to_owned),
+    });
+    let local = match &store {
+        Some(_) => tmp.join(format!(".farfield-merge-{}.ff", std::process::id())),
+        None => args.out.clone(),
+    };
+    check_target(&local)?;
+    let options = BuildOptions {
+        page_bytes: args
+            .page_bytes
+            .unwrap_or(farfield_builder::DEFAULT_PAGE_BYTES),
+        ..BuildOptions::default()
+    };
+    let progress = progress_bar(args.json);
+    let started = Instant::now();
+    let (finished, stats) = out_of_core::merge(&args.parts, &options, &tmp, &Bar(&progress))
+        .with_context(|| format!("merging {} parts", args.parts.len()))?;
+    let h = finished.file.header.clone();
+    let mut bytes = write_atomic_parts(&local, &h.encode(), &finished.file.body)?;
+    drop(finished);
+    if let Some((bucket, url)) = &store {
+        let published = farfield_objects::publish(&local, bucket, &url.key);
+        let _ = std::fs::remove_file(&local);
+        bytes = published?;
+    }
+    progress.finish_and_clear();
+    let seconds = started.elapsed().as_secs_f64();
+    let text = format!(
+        "{}: {} parts merged, {} ({}, {}) in {}, {bytes} bytes, {seconds:.2} s",
+        args.out.display(),
+        args.parts.len(),
+        counted(h.nodes, "node", "nodes"),
+        counted(h.leaves, "leaf", "leaves"),
+        counted(h.levels, "level", "levels"),
+        counted(h.pages.len() as u64, "page", "pages"),
+    );
+    Ok(Report {
+        json: json!({
+            "out": args.out,
+            "parts": args.parts,
+            "file_bytes": bytes,
+            "bytes_per_node": bytes as f64 / h.nodes.max(1) as f64,
+            "input_vertices": h.input_vertices,
+            "bytes_per_input": bytes as f64 / h.input_vertices.max(1) as f64,
+            "seconds": seconds,
+            "peak_rss_bytes": memory::peak_rss_bytes(),
+            "stats": stats,
+        }),
+        text,
+        exit_code: 0,
+        as_json: args.json,
+    })
+}
