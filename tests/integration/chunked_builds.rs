@@ -494,3 +494,45 @@ fn parts_built_apart_and_merged_are_the_whole_build() {
     assert!(e.contains("not a point cloud"), "{e}");
     assert!(!dir.join("refused.ff").exists());
 }
+
+/// Parts merged straight into object storage (`merge --out s3://...`)
+/// store the whole build's bytes.
+#[test]
+fn parts_merge_into_a_store() {
+    let dir = scratch("chunked-parts-store");
+    let Some(store) = crate::s3::S3Store::start_or_skip(&dir.join("store"), &["scenes"]) else {
+        return;
+    };
+    let input = tiles(&dir, 20_000, 2);
+    let whole = dir.join("whole.ff");
+    build(&input, &whole, &["--memory", "1"]);
+    let part = |i: u32| dir.join(format!("part{i}"));
+    for i in [1, 2] {
+        build(
+            &input,
+            &part(i),
+            &["--memory", "1", "--subset", &format!("{i}/2")],
+        );
+    }
+    let (p1, p2) = (part(1).display().to_string(), part(2).display().to_string());
+    let env = store.env();
+    let envs: Vec<(&str, &str)> = env.iter().map(|(k, v)| (*k, v.as_str())).collect();
+    let (ok, stdout) = child(
+        &[
+            "merge",
+            &p2,
+            &p1,
+            "--out",
+            "s3://scenes/survey.ff",
+            "--json",
+        ],
+        &envs,
+        None,
+    );
+    assert!(ok, "merge into the store failed: {stdout}");
+    assert!(
+        std::fs::read(store.object_file("scenes", "survey.ff")).unwrap()
+            == std::fs::read(&whole).unwrap(),
+        "the store holds other bytes than the whole build"
+    );
+}
