@@ -29,6 +29,9 @@ use crate::scene::{Geometry, Primitives, Scene};
 
 /// Points decoded per batch, at most.
 const BATCH: u64 = 1 << 16;
+/// Points decompressed per batch of a LAZ file read in parallel, at most:
+/// LASzip's chunks hold 50,000 points, so this is about 20 of them.
+const PARALLEL_BATCH: u64 = 1 << 20;
 
 /// Bytes of decoded records per batch, at most: the slab is sized for a
 /// whole batch before the points are read, and a LAZ header's point count
@@ -70,8 +73,13 @@ pub fn load(path: &Path) -> Result<Scene, ImportError> {
 fn capacity(path: &Path) -> Result<usize, ImportError> {
     let mut file = File::open(path).map_err(|e| ImportError::io(path, e))?;
     let file_len = file.metadata().map_err(|e| ImportError::io(path, e))?.len();
-    let (count, compressed) = precheck(path, &mut file, file_len)?;
-    Ok(count.min(if compressed { file_len } else { file_len / 20 }) as usize)
+    let checked = precheck(path, &mut file, file_len)?;
+    let bound = if checked.compressed {
+        file_len
+    } else {
+        file_len / 20
+    };
+    Ok(checked.count.min(bound) as usize)
 }
 
 /// A 16-bit LAS color channel as 8 bits: divided by 257 when the file's
@@ -104,9 +112,9 @@ pub(crate) struct LasInfo {
 pub(crate) fn survey(path: &Path) -> Result<LasInfo, ImportError> {
     let mut file = File::open(path).map_err(|e| ImportError::io(path, e))?;
     let file_len = file.metadata().map_err(|e| ImportError::io(path, e))?.len();
-    let (count, _) = precheck(path, &mut file, file_len)?;
-    let open =
-        move || las::Reader::new(BufReader::new(file)).map_err(|e| las_error(path, "header", e));
+    let count = precheck(path, &mut file, file_len)?.count;
+    // Only the header is read: no decompressor is set up to run.
+    let open = move || open_reader(path, file, false);
     // Opening a LAZ file decodes its chunk table.
     let reader = catch_unwind(AssertUnwindSafe(open)).unwrap_or_else(|_| {
         Err(ImportError::malformed(
@@ -134,12 +142,15 @@ pub(crate) fn survey(path: &Path) -> Result<LasInfo, ImportError> {
 pub(crate) fn stream(path: &Path, each: &mut EachBatch<'_>) -> Result<LasInfo, ImportError> {
     let mut file = File::open(path).map_err(|e| ImportError::io(path, e))?;
     let file_len = file.metadata().map_err(|e| ImportError::io(path, e))?.len();
-    let (count, compressed) = precheck(path, &mut file, file_len)?;
+    let Checked {
+        count,
+        compressed,
+        parallel,
+    } = precheck(path, &mut file, file_len)?;
     // Opening a LAZ file decodes its chunk table, so that is inside the
     // decompressor's `catch_unwind` too.
     let read = move || {
-        let mut reader = las::Reader::new(BufReader::with_capacity(1 << 20, file))
-            .map_err(|e| las_error(path, "header", e))?;
+        let mut reader = open_reader(path, file, parallel)?;
         let header = reader.header();
         let b = header.bounds();
         let info = LasInfo {
@@ -150,7 +161,7 @@ pub(crate) fn stream(path: &Path, each: &mut EachBatch<'_>) -> Result<LasInfo, I
                 DVec3::new(b.max.x, b.max.y, b.max.z),
             ),
         };
-        read_points(path, &mut reader, each)?;
+        read_points(path, &mut reader, parallel, each)?;
         Ok(info)
     };
     if compressed {
@@ -166,9 +177,24 @@ pub(crate) fn stream(path: &Path, each: &mut EachBatch<'_>) -> Result<LasInfo, I
     }
 }
 
+/// Opens a reader of `file` (at its start); a LAZ file's chunks are
+/// decompressed in parallel, on every core, when `parallel` (its chunk
+/// table checked by [`chunks_in_bounds`]), else in order.
+fn open_reader(path: &Path, file: File, parallel: bool) -> Result<las::Reader, ImportError> {
+    let parallelism = if parallel {
+        las::LazParallelism::Yes
+    } else {
+        las::LazParallelism::No
+    };
+    let options = las::ReaderOptions::default().with_laz_parallelism(parallelism);
+    las::Reader::with_options(BufReader::with_capacity(1 << 20, file), options)
+        .map_err(|e| las_error(path, "header", e))
+}
+
 fn read_points(
     path: &Path,
     reader: &mut las::Reader,
+    parallel: bool,
     each: &mut EachBatch<'_>,
 ) -> Result<(), ImportError> {
     let mut data = las::PointDataBuilder::new()
@@ -176,7 +202,10 @@ fn read_points(
         .build();
     let format = reader.header().point_format();
     let has_color = format.has_color;
-    let batch = (BATCH_BYTES / u64::from(format.len()).max(1)).clamp(1, BATCH);
+    // LAZ chunks are decompressed in parallel within a batch: a batch of
+    // many chunks keeps every core busy.
+    let most = if parallel { PARALLEL_BATCH } else { BATCH };
+    let batch = (BATCH_BYTES / u64::from(format.len()).max(1)).clamp(1, most);
     let mut positions = Vec::with_capacity(batch as usize);
     let mut colors = Vec::with_capacity(if has_color { batch as usize } else { 0 });
     let mut read = 0u64;
@@ -206,7 +235,7 @@ fn read_points(
 
 /// Checks the raw header against the file size; returns the point count and
 /// whether the points are compressed. Leaves the file at its start.
-fn precheck(path: &Path, file: &mut File, file_len: u64) -> Result<(u64, bool), ImportError> {
+fn precheck(path: &Path, file: &mut File, file_len: u64) -> Result<Checked, ImportError> {
     let raw = las::raw::Header::read_from(&mut *file).map_err(|e| las_error(path, "header", e))?;
     let legacy = u64::from(raw.number_of_point_records);
     let count = match raw.large_file {
@@ -231,10 +260,12 @@ fn precheck(path: &Path, file: &mut File, file_len: u64) -> Result<(u64, bool), 
         }
         _ => {}
     }
+    let mut parallel = false;
     if format.is_compressed {
         let point_data = u64::from(raw.offset_to_point_data);
         check_chunk_table(path, file, point_data, file_len)?;
         check_laszip_items(path, file, &raw, file_len)?;
+        parallel = chunks_in_bounds(file, &raw, count, file_len);
     }
     if let Some(evlr) = raw.evlr {
         // The crate allocates the first EVLR's 64-bit length before reading it.
@@ -257,7 +288,71 @@ fn precheck(path: &Path, file: &mut File, file_len: u64) -> Result<(u64, bool), 
     }
     file.seek(SeekFrom::Start(0))
         .map_err(|e| ImportError::io(path, e))?;
-    Ok((count, format.is_compressed))
+    Ok(Checked {
+        count,
+        compressed: format.is_compressed,
+        parallel,
+    })
+}
+
+/// What [`precheck`] found.
+struct Checked {
+    /// Points the header promises.
+    count: u64,
+    compressed: bool,
+    /// Whether the LAZ chunks may be decompressed in parallel.
+    parallel: bool,
+}
+
+/// The most bytes a chunk may decode to for parallel decompression.
+const MAX_PARALLEL_CHUNK_BYTES: u64 = 256 << 20;
+
+/// Whether a LAZ file's chunk table describes chunks within the file and
+/// the header's points, each of a size that may be decoded whole: the
+/// parallel decompressor (the `las` crate's `laz-parallel`) allocates by
+/// these counts before it reads, and the fuzzer drove it to ask for more
+/// memory than there is. A file whose table fails is decompressed in order,
+/// as before, which reads chunks as a stream.
+fn chunks_in_bounds(file: &mut File, raw: &las::raw::Header, count: u64, file_len: u64) -> bool {
+    let Some(vlr) = laszip_vlr(file, raw, file_len) else {
+        return false;
+    };
+    let point_data = u64::from(raw.offset_to_point_data);
+    let record = u64::from(raw.point_data_record_length).max(1);
+    let read = || -> Option<bool> {
+        let vlr = laz::LazVlr::read_from(&vlr[..]).ok()?;
+        file.seek(SeekFrom::Start(point_data)).ok()?;
+        let table = laz::laszip::ChunkTable::read_from(&mut *file, &vlr).ok()?;
+        let entries = table.as_ref();
+        let bytes = entries
+            .iter()
+            .try_fold(0u64, |sum, e| sum.checked_add(e.byte_count))?;
+        let points = entries
+            .iter()
+            .try_fold(0u64, |sum, e| sum.checked_add(e.point_count))?;
+        let within = |e: &laz::laszip::ChunkTableEntry| {
+            e.point_count
+                .checked_mul(record)
+                .is_some_and(|b| b <= MAX_PARALLEL_CHUNK_BYTES)
+        };
+        // Fixed-size chunks all claim the VLR's size; the last may hold
+        // fewer points.
+        let counted = if vlr.uses_variable_size_chunks() {
+            points == count
+        } else {
+            points >= count && points - count < u64::from(vlr.chunk_size())
+        };
+        Some(
+            !entries.is_empty()
+                && bytes <= file_len.saturating_sub(point_data)
+                && counted
+                && entries.iter().all(within),
+        )
+    };
+    catch_unwind(AssertUnwindSafe(read))
+        .ok()
+        .flatten()
+        .unwrap_or(false)
 }
 
 /// Checks the chunk count of a LAZ file's chunk table, which the `laz`
@@ -464,6 +559,62 @@ mod tests {
         let g = load_geometry(&write("laz", 1, 1)).unwrap();
         assert!(g.colors.is_none() && g.normals.is_none());
         assert_eq!(g.positions.len(), 3);
+    }
+
+    /// A LAZ file of many chunks (its chunk table checked, decompressed
+    /// in parallel in batches of many chunks) reads as the same points as
+    /// its LAS twin, in order, colors and all.
+    #[test]
+    fn a_laz_file_of_many_chunks_reads_as_its_las_twin() {
+        let points = 230_017u32;
+        let write = |ext: &str| {
+            let path = temp(ext);
+            let mut builder = las::Builder::from((1, 2));
+            builder.point_format = Format::new(2).unwrap();
+            builder.point_format.is_compressed = ext == "laz";
+            let mut writer = las::Writer::from_path(&path, builder.into_header().unwrap()).unwrap();
+            for i in 0..points {
+                writer
+                    .write_point(las::Point {
+                        x: f64::from(i % 1000) * 0.01,
+                        y: f64::from(i / 1000) * 0.01,
+                        z: f64::from(i % 7),
+                        color: Some(las::Color::new((i % 251) as u16, 7, (i % 13) as u16)),
+                        ..Default::default()
+                    })
+                    .unwrap();
+            }
+            writer.close().unwrap();
+            path
+        };
+        let (las_path, laz_path) = (write("las"), write("laz"));
+        let mut file = File::open(&laz_path).unwrap();
+        let len = file.metadata().unwrap().len();
+        assert!(
+            precheck(&laz_path, &mut file, len).unwrap().parallel,
+            "a sound table"
+        );
+        let mut streamed = 0;
+        let mut batches = 0;
+        stream(&laz_path, &mut |positions, colors| {
+            assert_eq!(colors.map(<[_]>::len), Some(positions.len()));
+            streamed += positions.len();
+            batches += 1;
+            Ok(())
+        })
+        .unwrap();
+        assert_eq!(streamed, points as usize);
+        assert!(
+            batches <= 2,
+            "{batches} batches: too few chunks each to keep the cores busy"
+        );
+        let (a, b) = (
+            load_geometry(&las_path).unwrap(),
+            load_geometry(&laz_path).unwrap(),
+        );
+        assert_eq!(a.positions.len(), points as usize);
+        assert!(a.positions == b.positions, "positions differ");
+        assert!(a.colors == b.colors, "colors differ");
     }
 
     #[test]
