@@ -73,29 +73,53 @@ pub(crate) fn count(
         + MEDIAN_BYTES;
     let chunk_points =
         (budget.memory.saturating_sub(reserved) / CHUNK_BYTES_PER_POINT).max(MIN_CHUNK_POINTS);
-    let grid = Grid::new(hint, points, chunk_points);
-    let mut counts = vec![0u32; grid.cells()];
-    let mut read = 0u64;
-    progress.begin("count", points);
-    for s in sources.iter_mut() {
-        s.scan(&mut |positions| {
-            for &p in positions {
-                let c = &mut counts[grid.cell_of(p)];
-                *c = c.checked_add(1).ok_or_else(|| ImportError::Malformed {
-                    path: PathBuf::from("input"),
-                    element: "points".into(),
-                    message: "over 4 billion points in one cell of the counting grid".into(),
-                })?;
-            }
-            read += positions.len() as u64;
-            progress.advance(positions.len() as u64);
-            Ok(())
-        })
-        .map_err(|e| BuildError::Invalid(e.to_string()))?;
-    }
-    if read == 0 {
-        return Err(BuildError::Empty);
-    }
+    // LAS headers' bounds are a hint: a scan that finds points well
+    // outside them counts again over the bounds it measured (a grid too
+    // small would put them all in its edge cells, as chunks too large).
+    let mut grid = Grid::new(hint, points, chunk_points);
+    let (counts, read) = loop {
+        let mut counts = vec![0u32; grid.cells()];
+        let mut read = 0u64;
+        let mut measured = (DVec3::INFINITY, DVec3::NEG_INFINITY);
+        progress.begin("count", points);
+        for s in sources.iter_mut() {
+            s.scan(&mut |positions| {
+                for &p in positions {
+                    if !p.is_finite() {
+                        return Err(ImportError::Malformed {
+                            path: PathBuf::from("input"),
+                            element: format!("point {}", read),
+                            message: "a coordinate is not a finite number".into(),
+                        });
+                    }
+                    measured = (measured.0.min(p), measured.1.max(p));
+                    let c = &mut counts[grid.cell_of(p)];
+                    *c = c.checked_add(1).ok_or_else(|| ImportError::Malformed {
+                        path: PathBuf::from("input"),
+                        element: "points".into(),
+                        message: "over 4 billion points in one cell of the counting grid".into(),
+                    })?;
+                }
+                read += positions.len() as u64;
+                progress.advance(positions.len() as u64);
+                Ok(())
+            })
+            .map_err(|e| BuildError::Invalid(e.to_string()))?;
+        }
+        if read == 0 {
+            return Err(BuildError::Empty);
+        }
+        // Points a hair outside (the header's rounding) land in the edge
+        // cells, which is harmless; a box a hundredth larger is not a hint.
+        let slack = (hint.1 - hint.0).max_element().max(0.0) * 0.01;
+        let inside =
+            measured.0.cmpge(hint.0 - slack).all() && measured.1.cmple(hint.1 + slack).all();
+        if inside {
+            break (counts, read);
+        }
+        hint = measured;
+        grid = Grid::new(hint, points, chunk_points);
+    };
     let grid_side = grid.side();
     Ok(Counted {
         chunks: Chunks::cut(grid, counts, chunk_points),

@@ -202,3 +202,59 @@ fn a_chunks_halo_keeps_its_border_points_sized_as_in_the_whole_cloud() {
     );
     let _ = std::fs::remove_dir_all(&tmp);
 }
+
+/// A LAS file whose header claims bounds its points are far outside
+/// (here all zero) is counted again over the measured bounds: its chunks
+/// are cut over the real extent, not all in one cell at the header's
+/// corner.
+#[test]
+fn a_las_header_with_wrong_bounds_is_counted_again() {
+    let tmp = scratch("bounds");
+    let path = tmp.join("wrong.las");
+    let mut builder = ::las::Builder::from((1, 2));
+    builder.point_format = ::las::point::Format::new(2).unwrap();
+    let mut writer = ::las::Writer::from_path(&path, builder.into_header().unwrap()).unwrap();
+    let mut rnd = crate::test_random(9);
+    for _ in 0..20_000 {
+        writer
+            .write_point(::las::Point {
+                x: 500.0 + rnd() * 100.0,
+                y: 200.0 + rnd() * 100.0,
+                z: rnd(),
+                color: Some(::las::Color::new(10, 20, 30)),
+                ..Default::default()
+            })
+            .unwrap();
+    }
+    writer.close().unwrap();
+    // The header's max and min x, y, z (LAS 1.2: six f64 from byte 179).
+    let mut bytes = std::fs::read(&path).unwrap();
+    bytes[179..179 + 48].fill(0);
+    std::fs::write(&path, &bytes).unwrap();
+    let info = crate::import::las::survey(&path).unwrap();
+    assert_eq!(
+        info.bounds,
+        (DVec3::ZERO, DVec3::ZERO),
+        "the header was not damaged"
+    );
+    let job = Job {
+        sources: vec![PointSource::Las {
+            path: path.clone(),
+            info,
+            wide: false,
+        }],
+        budget: Budget {
+            memory: 0,
+            tmp: tmp.join("spill"),
+        },
+    };
+    let (finished, stats) = job.build(&BuildOptions::default(), &Silent).unwrap();
+    assert!(
+        stats.chunks >= 10,
+        "{} chunks: cut over the header's bounds",
+        stats.chunks
+    );
+    let h = &finished.file.header;
+    assert!(h.bounds_min.x >= 500.0 && h.bounds_max.y <= 300.0 + 1e-9);
+    assert_eq!(h.input_vertices, 20_000);
+}
