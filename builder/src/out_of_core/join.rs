@@ -34,6 +34,33 @@ pub(crate) struct Joined {
     pub seconds_pages: f64,
 }
 
+impl Joined {
+    /// The build's figures, as the in-memory build reports them;
+    /// `seconds_before` is what came before the join (the count).
+    pub(crate) fn stats(
+        &self,
+        pages: usize,
+        layout: NodeLayout,
+        seconds_before: f64,
+    ) -> crate::BuildStats {
+        crate::BuildStats {
+            input_vertices: self.points,
+            input_primitives: self.points,
+            unreferenced_vertices: 0,
+            collapsed_duplicates: self.collapsed,
+            leaves: self.leaves,
+            nodes: self.nodes,
+            levels: self.levels,
+            pages,
+            has_color: layout.color,
+            has_normals: layout.normals,
+            seconds_leaves: seconds_before + self.seconds_sizes + self.seconds_roots,
+            seconds_tree: self.seconds_top,
+            seconds_layout: self.seconds_levels + self.seconds_pages,
+        }
+    }
+}
+
 /// Builds the file from sized chunks (in chunk order). Level files and
 /// the pages go under `temp`; the leaves and radii files are removed as
 /// they are used when `own_files` (a merge leaves its parts as they are).

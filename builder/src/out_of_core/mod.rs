@@ -314,7 +314,7 @@ impl Job {
         checkpoint("spread");
         let sized = phases::size(&spread, &counted, temp.path(), progress)?;
         let (file, joined) = join::join(sized, counted.layout, options, &temp, true, progress)?;
-        let build = counted.stats(&joined, file.header.pages.len());
+        let build = joined.stats(file.header.pages.len(), counted.layout, counted.seconds);
         Ok((
             Finished { file, _temp: temp },
             OutOfCoreStats {

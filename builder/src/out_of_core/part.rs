@@ -309,21 +309,7 @@ pub fn merge(
         seconds,
     };
     let (file, joined) = join::join(sized, layout, options, &temp, false, progress)?;
-    let build = crate::BuildStats {
-        input_vertices: joined.points,
-        input_primitives: joined.points,
-        unreferenced_vertices: 0,
-        collapsed_duplicates: joined.collapsed,
-        leaves: joined.leaves,
-        nodes: joined.nodes,
-        levels: joined.levels,
-        pages: file.header.pages.len(),
-        has_color: layout.color,
-        has_normals: layout.normals,
-        seconds_leaves: joined.seconds_sizes + joined.seconds_roots,
-        seconds_tree: joined.seconds_top,
-        seconds_layout: joined.seconds_levels + joined.seconds_pages,
-    };
+    let build = joined.stats(file.header.pages.len(), layout, 0.0);
     Ok((
         Finished { file, _temp: temp },
         OutOfCoreStats {

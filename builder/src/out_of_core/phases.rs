@@ -137,27 +137,6 @@ pub(crate) fn count(
     })
 }
 
-impl Counted {
-    /// The build's figures, as the in-memory build reports them.
-    pub(crate) fn stats(&self, joined: &super::join::Joined, pages: usize) -> crate::BuildStats {
-        crate::BuildStats {
-            input_vertices: joined.points,
-            input_primitives: joined.points,
-            unreferenced_vertices: 0,
-            collapsed_duplicates: joined.collapsed,
-            leaves: joined.leaves,
-            nodes: joined.nodes,
-            levels: joined.levels,
-            pages,
-            has_color: self.layout.color,
-            has_normals: self.layout.normals,
-            seconds_leaves: self.seconds + joined.seconds_sizes + joined.seconds_roots,
-            seconds_tree: joined.seconds_top,
-            seconds_layout: joined.seconds_levels + joined.seconds_pages,
-        }
-    }
-}
-
 /// The spread's chunk files.
 pub(crate) struct Spread {
     /// Each chunk's file (absent for a chunk not selected).

@@ -165,25 +165,7 @@ pub fn run(args: &BuildArgs) -> anyhow::Result<Report> {
     }
     // Published to a store: built into a temporary file first (the store
     // is reached before the build, so a wrong address fails at once).
-    let store = match args
-        .out
-        .to_str()
-        .filter(|o| farfield_objects::is_store_url(o))
-    {
-        Some(url) => {
-            let (bucket, url) = args.store.bucket(url, Default::default())?;
-            anyhow::ensure!(
-                !url.key.is_empty(),
-                "{url}: name the object to write (s3://bucket/key.ff)"
-            );
-            match bucket.head(&url.key) {
-                Ok(_) | Err(farfield_objects::RemoteError::NotFound(_)) => {}
-                Err(e) => anyhow::bail!("cannot reach the store: {e}"),
-            }
-            Some((bucket, url))
-        }
-        None => None,
-    };
+    let store = args.store.publish_target(&args.out)?;
     let local = match &store {
         Some(_) => std::env::temp_dir().join(format!("farfield-build-{}.ff", std::process::id())),
         None => args.out.clone(),

@@ -18,25 +18,7 @@ use super::{MergeArgs, Report, counted};
 pub fn run(args: &MergeArgs) -> anyhow::Result<Report> {
     // Published to a store: merged into a temporary file first (the store
     // is reached before the merge, so a wrong address fails at once).
-    let store = match args
-        .out
-        .to_str()
-        .filter(|o| farfield_objects::is_store_url(o))
-    {
-        Some(url) => {
-            let (bucket, url) = args.store.bucket(url, Default::default())?;
-            anyhow::ensure!(
-                !url.key.is_empty(),
-                "{url}: name the object to write (s3://bucket/key.ff)"
-            );
-            match bucket.head(&url.key) {
-                Ok(_) | Err(farfield_objects::RemoteError::NotFound(_)) => {}
-                Err(e) => anyhow::bail!("cannot reach the store: {e}"),
-            }
-            Some((bucket, url))
-        }
-        None => None,
-    };
+    let store = args.store.publish_target(&args.out)?;
     let tmp = args.tmp.clone().unwrap_or_else(|| match &store {
         Some(_) => std::env::temp_dir(),
         None => args

@@ -157,6 +157,33 @@ pub struct StoreArgs {
 }
 
 impl StoreArgs {
+    /// Where a command that writes a scene publishes it: `None` for a
+    /// local `out`, else the store's bucket and the object's address, the
+    /// store reached first so that a wrong address fails before the work.
+    pub fn publish_target(
+        &self,
+        out: &std::path::Path,
+    ) -> anyhow::Result<
+        Option<(
+            std::sync::Arc<farfield_objects::Bucket>,
+            farfield_objects::StoreUrl,
+        )>,
+    > {
+        let Some(url) = out.to_str().filter(|o| farfield_objects::is_store_url(o)) else {
+            return Ok(None);
+        };
+        let (bucket, url) = self.bucket(url, Default::default())?;
+        anyhow::ensure!(
+            !url.key.is_empty(),
+            "{url}: name the object to write (s3://bucket/key.ff)"
+        );
+        match bucket.head(&url.key) {
+            Ok(_) | Err(farfield_objects::RemoteError::NotFound(_)) => {}
+            Err(e) => anyhow::bail!("cannot reach the store: {e}"),
+        }
+        Ok(Some((bucket, url)))
+    }
+
     /// The bucket of `url` (`s3://bucket/...`), and the key or prefix.
     pub fn bucket(
         &self,
