@@ -191,7 +191,8 @@ fn point_clouds_built_in_chunks_render_as_in_memory_builds_do() {
     }
 }
 
-/// A mesh over the budget is built in memory, and the report says why.
+/// A mesh over the budget is built in memory, and the report says why; so
+/// does a kind other than spheres given a budget.
 #[test]
 fn a_mesh_over_the_budget_is_built_in_memory_with_a_note() {
     let dir = scratch("chunked-mesh");
@@ -211,6 +212,21 @@ fn a_mesh_over_the_budget_is_built_in_memory_with_a_note() {
     let note = report["note"].as_str().unwrap_or_default();
     assert!(note.contains("not a point cloud"), "{report}");
     assert!(SceneFile::open(&out).is_ok());
+    let cubes = crate::cli(&[
+        "build",
+        "gen:tree",
+        "--kind",
+        "cubes",
+        "--out",
+        dir.join("cubes.ff").to_str().unwrap(),
+        "--memory",
+        "1",
+        "--json",
+    ])
+    .expect("build cubes")
+    .json;
+    let note = cubes["note"].as_str().unwrap_or_default();
+    assert!(note.contains("sphere builds only"), "{cubes}");
 }
 
 /// The child process of the tests below: `farfield-server` with the

@@ -183,7 +183,12 @@ pub fn run(args: &BuildArgs) -> anyhow::Result<Report> {
     } else {
         Plan::InMemory {
             scene: load_inputs(&args.inputs, &params)?,
-            note: None,
+            note: args.memory.map(|_| {
+                format!(
+                    "--memory bounds sphere builds only: the {} hierarchy is built in memory",
+                    builder.name()
+                )
+            }),
         }
     };
     let seconds_import = started.elapsed().as_secs_f64();
