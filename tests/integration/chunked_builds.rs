@@ -509,6 +509,32 @@ fn parts_built_apart_and_merged_are_the_whole_build() {
     );
     assert!(e.contains("not a point cloud"), "{e}");
     assert!(!dir.join("refused.ff").exists());
+
+    // Damaged parts: a manifest naming another part's chunk, and a leaf
+    // whose position is not a number.
+    let manifest = part(2).join("part.json");
+    let good = std::fs::read_to_string(&manifest).unwrap();
+    let mut m: serde_json::Value = serde_json::from_str(&good).unwrap();
+    m["chunks"][0]["chunk"] = serde_json::json!(0);
+    std::fs::write(&manifest, m.to_string()).unwrap();
+    let e = format!(
+        "{:#}",
+        merge(&[1, 2, 3], &dir.join("refused.ff")).unwrap_err()
+    );
+    assert!(e.contains("not part 2/3's"), "{e}");
+    std::fs::write(&manifest, good).unwrap();
+    let m: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(part(3).join("part.json")).unwrap()).unwrap();
+    let leaves = part(3).join(format!("chunk-{}.leaves", m["chunks"][0]["chunk"]));
+    let mut bytes = std::fs::read(&leaves).unwrap();
+    bytes[..8].copy_from_slice(&f64::NAN.to_le_bytes());
+    std::fs::write(&leaves, bytes).unwrap();
+    let e = format!(
+        "{:#}",
+        merge(&[1, 2, 3], &dir.join("refused.ff")).unwrap_err()
+    );
+    assert!(e.contains("not finite"), "{e}");
+    assert!(!dir.join("refused.ff").exists());
 }
 
 /// Parts merged straight into object storage (`merge --out s3://...`)

@@ -201,8 +201,20 @@ pub(crate) fn read_leaves(path: &Path) -> io::Result<Vec<Leaf>> {
             |at: usize| f64::from_le_bytes(record[at..at + 8].try_into().unwrap_or_default());
         let u32_at =
             |at: usize| u32::from_le_bytes(record[at..at + 4].try_into().unwrap_or_default());
+        let position = DVec3::new(f64_at(0), f64_at(8), f64_at(16));
+        // A merge reads parts made elsewhere: a damaged one must not reach
+        // the tree with a position that is not a number.
+        if !position.is_finite() {
+            return Err(io::Error::new(
+                io::ErrorKind::InvalidData,
+                format!(
+                    "{}: leaf {source} has a position that is not finite (the file is damaged)",
+                    path.display()
+                ),
+            ));
+        }
         leaves.push(Leaf {
-            position: DVec3::new(f64_at(0), f64_at(8), f64_at(16)),
+            position,
             radius: f32::from_bits(u32_at(24)),
             normal: u32_at(28),
             color: [record[32], record[33], record[34]],

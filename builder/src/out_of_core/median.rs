@@ -54,9 +54,13 @@ impl RadiusMedian {
     /// Counts the radii a chunk's `add` wrote to `path` before (a part of
     /// a build made elsewhere).
     pub(crate) fn add_file(&mut self, path: &Path) -> io::Result<()> {
+        // As `add` counts them: positive radii (a damaged file's NaN or
+        // negative values are not radii).
         for_each_radius(path, &mut |r| {
-            self.bins[key(r)] += 1;
-            self.count += 1;
+            if r.is_finite() && r > 0.0 {
+                self.bins[key(r)] += 1;
+                self.count += 1;
+            }
         })?;
         self.files.push(path.to_owned());
         Ok(())

@@ -265,8 +265,22 @@ pub fn merge(
     let started = Instant::now();
     let mut median = RadiusMedian::new();
     let mut entries = Vec::new();
+    let mut taken = std::collections::HashSet::new();
     for (m, part) in manifests.iter().zip(parts) {
         for c in &m.chunks {
+            // Each chunk from the one part whose region holds it, once.
+            let owned = u32::try_from(c.chunk).is_ok_and(|id| {
+                id < first.shared.chunks && m.subset.takes(id, first.shared.chunks)
+            });
+            if !owned || !taken.insert(c.chunk) {
+                return Err(invalid(
+                    part,
+                    format!(
+                        "its manifest names chunk {}, which is not part {}/{count}'s (the part is damaged)",
+                        c.chunk, m.subset.index
+                    ),
+                ));
+            }
             let leaves = part.join(format!("chunk-{}.leaves", c.chunk));
             let bytes = std::fs::metadata(&leaves).map_or(0, |meta| meta.len());
             if bytes != c.points * LEAF_BYTES {
