@@ -108,6 +108,21 @@ pub(crate) struct LasInfo {
     pub bounds: (DVec3, DVec3),
 }
 
+impl LasInfo {
+    /// What `header` says, with the point count `precheck` found.
+    fn of(header: &las::Header, count: u64) -> Self {
+        let b = header.bounds();
+        Self {
+            count,
+            has_color: header.point_format().has_color,
+            bounds: (
+                DVec3::new(b.min.x, b.min.y, b.min.z),
+                DVec3::new(b.max.x, b.max.y, b.max.z),
+            ),
+        }
+    }
+}
+
 /// Reads the header of a LAS or LAZ file, checked as [`load`] checks it.
 pub(crate) fn survey(path: &Path) -> Result<LasInfo, ImportError> {
     let mut file = File::open(path).map_err(|e| ImportError::io(path, e))?;
@@ -123,16 +138,7 @@ pub(crate) fn survey(path: &Path) -> Result<LasInfo, ImportError> {
             "the LAZ data is corrupt",
         ))
     })?;
-    let header = reader.header();
-    let b = header.bounds();
-    Ok(LasInfo {
-        count,
-        has_color: header.point_format().has_color,
-        bounds: (
-            DVec3::new(b.min.x, b.min.y, b.min.z),
-            DVec3::new(b.max.x, b.max.y, b.max.z),
-        ),
-    })
+    Ok(LasInfo::of(reader.header(), count))
 }
 
 /// Reads a LAS or LAZ file's points in batches (positions with the file's
@@ -151,16 +157,7 @@ pub(crate) fn stream(path: &Path, each: &mut EachBatch<'_>) -> Result<LasInfo, I
     // decompressor's `catch_unwind` too.
     let read = move || {
         let mut reader = open_reader(path, file, parallel)?;
-        let header = reader.header();
-        let b = header.bounds();
-        let info = LasInfo {
-            count,
-            has_color: header.point_format().has_color,
-            bounds: (
-                DVec3::new(b.min.x, b.min.y, b.min.z),
-                DVec3::new(b.max.x, b.max.y, b.max.z),
-            ),
-        };
+        let info = LasInfo::of(reader.header(), count);
         read_points(path, &mut reader, parallel, each)?;
         Ok(info)
     };

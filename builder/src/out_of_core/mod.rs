@@ -129,8 +129,8 @@ pub fn plan(inputs: &[String], params: &Params, budget: &Budget) -> Result<Plan,
     let points: u64 = entries
         .iter()
         .map(|e| match e {
-            Ok(source) => source.count(),
-            Err(scene) => scene.instanced_vertex_count(),
+            Input::Las(source) => source.count(),
+            Input::Loaded(scene) => scene.instanced_vertex_count(),
         })
         .sum();
     let need = points.saturating_mul(IN_MEMORY_BYTES_PER_POINT);
@@ -149,13 +149,8 @@ pub fn plan(inputs: &[String], params: &Params, budget: &Budget) -> Result<Plan,
         let mut scene = Scene::default();
         for entry in entries {
             scene.merge(match entry {
-                Ok(source) => match source {
-                    PointSource::Las { path, .. } => {
-                        load_input(&path.display().to_string(), params)?
-                    }
-                    PointSource::Memory(g) => Scene::single(g),
-                },
-                Err(loaded) => loaded,
+                Input::Las(source) => source.load(params)?,
+                Input::Loaded(loaded) => loaded,
             });
         }
         return Ok(Plan::InMemory {
@@ -185,12 +180,17 @@ pub fn plan_out_of_core(
     Ok(job_of(entries, budget))
 }
 
+/// An input as the plan first sees it.
+enum Input {
+    /// A LAS or LAZ file, counted from its header, not read yet.
+    Las(PointSource),
+    /// Any other input, loaded whole by its importer.
+    Loaded(Scene),
+}
+
 /// Each input in order: a LAS file counted from its header, or a scene
 /// loaded whole.
-fn survey_inputs(
-    inputs: &[String],
-    params: &Params,
-) -> Result<Vec<Result<PointSource, Scene>>, ImportError> {
+fn survey_inputs(inputs: &[String], params: &Params) -> Result<Vec<Input>, ImportError> {
     let mut entries = Vec::new();
     for input in expand_folders(inputs)? {
         let path = std::path::Path::new(&input);
@@ -200,23 +200,23 @@ fn survey_inputs(
             .map(str::to_ascii_lowercase);
         if !input.starts_with("gen:") && matches!(extension.as_deref(), Some("las" | "laz")) {
             let info = las::survey(path)?;
-            entries.push(Ok(PointSource::Las {
+            entries.push(Input::Las(PointSource::Las {
                 path: path.to_owned(),
                 info,
                 wide: false,
             }));
         } else {
-            entries.push(Err(load_input(&input, params)?));
+            entries.push(Input::Loaded(load_input(&input, params)?));
         }
     }
     Ok(entries)
 }
 
 /// The name of the first loaded geometry that is not a point cloud.
-fn first_mesh(entries: &[Result<PointSource, Scene>]) -> Option<String> {
+fn first_mesh(entries: &[Input]) -> Option<String> {
     entries.iter().find_map(|e| {
-        e.as_ref()
-            .err()?
+        let Input::Loaded(scene) = e else { return None };
+        scene
             .geometries
             .iter()
             .find(|g| !matches!(g.primitives, Primitives::Points))
@@ -224,14 +224,14 @@ fn first_mesh(entries: &[Result<PointSource, Scene>]) -> Option<String> {
     })
 }
 
-fn job_of(entries: Vec<Result<PointSource, Scene>>, budget: &Budget) -> Job {
+fn job_of(entries: Vec<Input>, budget: &Budget) -> Job {
     let mut sources = Vec::new();
     for entry in entries {
         match entry {
-            Ok(source) => sources.push(source),
+            Input::Las(source) => sources.push(source),
             // Clouds in memory are streamed from there, placed by their
             // instances.
-            Err(scene) => sources.extend(placed_clouds(scene)),
+            Input::Loaded(scene) => sources.extend(placed_clouds(scene)),
         }
     }
     Job {

@@ -60,6 +60,19 @@ impl PointSource {
         }
     }
 
+    /// The whole input as a scene, for a build that fits in memory.
+    pub(crate) fn load(
+        self,
+        params: &crate::import::Params,
+    ) -> Result<crate::scene::Scene, ImportError> {
+        match self {
+            Self::Las { path, .. } => {
+                crate::import::load_input(&path.display().to_string(), params)
+            }
+            Self::Memory(g) => Ok(crate::scene::Scene::single(g)),
+        }
+    }
+
     /// Reads every position, in batches; a LAS file's colors are looked at
     /// too, to learn whether they are 16-bit (see [`PointSource::Las`]).
     pub(crate) fn scan(

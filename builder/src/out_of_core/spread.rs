@@ -122,23 +122,26 @@ impl Spreader {
 }
 
 /// Reads a chunk's file back, its own points first; the file is removed.
+/// Records are read through a buffer, not the whole file at once: a
+/// chunk's points are its build's largest input and are held only once.
 pub(crate) fn read_chunk(path: &Path, colors: bool, normals: bool) -> io::Result<ChunkPoints> {
-    let mut bytes = Vec::new();
-    std::fs::File::open(path)?.read_to_end(&mut bytes)?;
-    std::fs::remove_file(path)?;
+    let file = std::fs::File::open(path)?;
+    let bytes = file.metadata()?.len();
     let size = record_bytes(normals);
-    if bytes.len() % size != 0 {
+    if bytes % size as u64 != 0 {
         return Err(io::Error::other(format!(
-            "{}: a chunk file of {} bytes is not whole records",
-            path.display(),
-            bytes.len()
+            "{}: a chunk file of {bytes} bytes is not whole records",
+            path.display()
         )));
     }
-    let count = bytes.len() / size;
+    let count = (bytes / size as u64) as usize;
+    let mut input = io::BufReader::with_capacity(1 << 20, file);
     let mut own = ChunkPoints::default();
     let mut halo = ChunkPoints::default();
     own.positions.reserve(count);
-    for record in bytes.chunks_exact(size) {
+    let mut record = vec![0u8; size];
+    for _ in 0..count {
+        input.read_exact(&mut record)?;
         let f64_at =
             |at: usize| f64::from_le_bytes(record[at..at + 8].try_into().unwrap_or_default());
         let f32_at =
@@ -158,7 +161,8 @@ pub(crate) fn read_chunk(path: &Path, colors: bool, normals: bool) -> io::Result
                 .push(Vec3::new(f32_at(28), f32_at(32), f32_at(36)));
         }
     }
-    drop(bytes);
+    drop(input);
+    std::fs::remove_file(path)?;
     own.own = own.positions.len();
     own.positions.append(&mut halo.positions);
     own.colors.append(&mut halo.colors);

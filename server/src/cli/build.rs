@@ -1,7 +1,7 @@
 //! `farfield-server build`: inputs -> scene -> hierarchy -> file.
 
 use std::io::IsTerminal;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::time::Instant;
 
 use anyhow::Context;
@@ -19,7 +19,7 @@ use farfield_protocol::file::HierarchyKind;
 use farfield_store::{check_target, write_atomic, write_atomic_parts};
 use farfield_tools::meters::memory;
 
-use super::{BuildArgs, Report, counted};
+use super::{BuildArgs, Report, counted, folder_of, publish_and_remove};
 
 /// Steps without a measure of their own (import, writing): a spinner and
 /// what is going on.
@@ -51,10 +51,7 @@ fn budget_of(args: &BuildArgs, local: &Path, remote: bool) -> Budget {
         tmp: match &args.tmp {
             Some(dir) => dir.clone(),
             None if remote => std::env::temp_dir(),
-            None => local
-                .parent()
-                .filter(|p| !p.as_os_str().is_empty())
-                .map_or_else(|| PathBuf::from("."), Path::to_owned),
+            None => folder_of(local),
         },
     }
 }
@@ -74,12 +71,7 @@ fn run_subset(
     );
     let budget = Budget {
         // A part's temporary files go beside it, not inside it.
-        tmp: args.tmp.clone().unwrap_or_else(|| {
-            args.out
-                .parent()
-                .filter(|p| !p.as_os_str().is_empty())
-                .map_or_else(|| PathBuf::from("."), Path::to_owned)
-        }),
+        tmp: args.tmp.clone().unwrap_or_else(|| folder_of(&args.out)),
         ..budget_of(args, &args.out, false)
     };
     let started = Instant::now();
@@ -262,10 +254,8 @@ pub fn run(args: &BuildArgs) -> anyhow::Result<Report> {
     let h = made.header().clone();
     // The spilled pages and their temporary folder go now.
     drop(made);
-    if let Some((bucket, url)) = &store {
-        let published = farfield_objects::publish(&local, bucket, &url.key);
-        let _ = std::fs::remove_file(&local);
-        bytes = published?;
+    if let Some(target) = &store {
+        bytes = publish_and_remove(&local, target)?;
     }
     progress.finish_and_clear();
     let seconds = started.elapsed().as_secs_f64();

@@ -1,7 +1,6 @@
 //! `farfield-server merge`: the parts of a build on many machines into one
 //! scene file.
 
-use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use anyhow::Context;
@@ -13,7 +12,7 @@ use farfield_store::{check_target, write_atomic_parts};
 use farfield_tools::meters::memory;
 
 use super::build::{Bar, progress_bar};
-use super::{MergeArgs, Report, counted};
+use super::{MergeArgs, Report, counted, folder_of, publish_and_remove};
 
 pub fn run(args: &MergeArgs) -> anyhow::Result<Report> {
     // Published to a store: merged into a temporary file first (the store
@@ -21,11 +20,7 @@ pub fn run(args: &MergeArgs) -> anyhow::Result<Report> {
     let store = args.store.publish_target(&args.out)?;
     let tmp = args.tmp.clone().unwrap_or_else(|| match &store {
         Some(_) => std::env::temp_dir(),
-        None => args
-            .out
-            .parent()
-            .filter(|p| !p.as_os_str().is_empty())
-            .map_or_else(|| PathBuf::from("."), Path::to_owned),
+        None => folder_of(&args.out),
     });
     let local = match &store {
         Some(_) => tmp.join(format!(".farfield-merge-{}.ff", std::process::id())),
@@ -45,10 +40,8 @@ pub fn run(args: &MergeArgs) -> anyhow::Result<Report> {
     let h = finished.file.header.clone();
     let mut bytes = write_atomic_parts(&local, &h.encode(), &finished.file.body)?;
     drop(finished);
-    if let Some((bucket, url)) = &store {
-        let published = farfield_objects::publish(&local, bucket, &url.key);
-        let _ = std::fs::remove_file(&local);
-        bytes = published?;
+    if let Some(target) = &store {
+        bytes = publish_and_remove(&local, target)?;
     }
     progress.finish_and_clear();
     let seconds = started.elapsed().as_secs_f64();

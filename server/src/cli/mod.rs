@@ -156,6 +156,28 @@ pub struct StoreArgs {
     pub store_tier_bytes: u64,
 }
 
+/// The folder a file is written in (`.` for a bare name): where a
+/// command's temporary files go by default, on the output's file system.
+pub(crate) fn folder_of(path: &std::path::Path) -> PathBuf {
+    path.parent()
+        .filter(|p| !p.as_os_str().is_empty())
+        .map_or_else(|| PathBuf::from("."), std::path::Path::to_owned)
+}
+
+/// Publishes the scene written to `local` as `target`'s object, removing
+/// `local` either way; the bytes published.
+pub(crate) fn publish_and_remove(
+    local: &std::path::Path,
+    (bucket, url): &(
+        std::sync::Arc<farfield_objects::Bucket>,
+        farfield_objects::StoreUrl,
+    ),
+) -> anyhow::Result<u64> {
+    let published = farfield_objects::publish(local, bucket, &url.key);
+    let _ = std::fs::remove_file(local);
+    Ok(published?)
+}
+
 impl StoreArgs {
     /// Where a command that writes a scene publishes it: `None` for a
     /// local `out`, else the store's bucket and the object's address, the
