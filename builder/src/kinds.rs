@@ -51,6 +51,9 @@ pub struct KindBuilder {
     /// Builds the kind's file from a scene, consumed: a builder that needs
     /// the scene whole frees it as soon as it is done with it.
     pub build: fn(Scene, &BuildSettings, &dyn Progress) -> Result<Built, BuildError>,
+    /// Whether `crate::out_of_core` can build the kind within a memory
+    /// budget; the others load the scene whole.
+    pub out_of_core: bool,
 }
 
 impl KindBuilder {
@@ -66,21 +69,25 @@ pub const BUILDERS: &[KindBuilder] = &[
         kind: HierarchyKind::Spheres,
         about: "QSplat's bounding spheres",
         build: build_spheres_kind,
+        out_of_core: true,
     },
     KindBuilder {
         kind: HierarchyKind::Cubes,
         about: "the color-cube octree of Chamberlain et al., the geometry at its leaves",
         build: build_cubes_kind,
+        out_of_core: false,
     },
     KindBuilder {
         kind: HierarchyKind::Plp,
         about: "PLP's Delaunay tessellation (Klosowski and Silva), for budgeted rendering",
         build: build_plp_kind,
+        out_of_core: false,
     },
     KindBuilder {
         kind: HierarchyKind::Bsp,
         about: "the BSP by gaps of Shade et al.'s hierarchical image caching",
         build: build_bsp_kind,
+        out_of_core: false,
     },
 ];
 

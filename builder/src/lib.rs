@@ -20,7 +20,6 @@ pub mod scene;
 pub mod cubes;
 pub mod generate;
 pub mod kinds;
-pub mod out_of_core;
 pub mod page_writer;
 pub mod plp;
 pub mod progress;
@@ -29,6 +28,9 @@ pub mod zero_area;
 
 pub use farfield_protocol::paged_file::PagedFile;
 pub use progress::{Progress, Silent};
+/// Sphere builds bounded by a memory budget, under their kind's module
+/// since only spheres are built so; here for the command line's sake.
+pub use spheres::out_of_core;
 pub use spheres::{
     BuildOptions, BuildStats, DEFAULT_PAGE_BYTES, build_spheres, build_spheres_reporting,
 };

@@ -7,6 +7,7 @@
 pub mod knn;
 pub mod layout;
 pub mod leaves;
+pub mod out_of_core;
 pub(crate) mod page_cutter;
 pub mod tree;
 

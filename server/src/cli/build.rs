@@ -15,7 +15,6 @@ use farfield_builder::kinds::BuildSettings;
 use farfield_builder::out_of_core::{self, Budget, Plan, Subset};
 use farfield_builder::plp::PlpOptions;
 use farfield_builder::{BuildError, BuildOptions, Progress};
-use farfield_protocol::file::HierarchyKind;
 use farfield_store::{check_target, write_atomic, write_atomic_parts};
 use farfield_tools::meters::memory;
 
@@ -170,7 +169,7 @@ pub fn run(args: &BuildArgs) -> anyhow::Result<Report> {
         .with_context(|| format!("unknown hierarchy kind {:?}", args.kind))?;
     let budget = budget_of(args, &local, store.is_some());
     // Only spheres are built out of core; other kinds load the scene.
-    let plan = if builder.kind == HierarchyKind::Spheres {
+    let plan = if builder.out_of_core {
         out_of_core::plan(&args.inputs, &params, &budget)?
     } else {
         Plan::InMemory {
