@@ -13,8 +13,10 @@ use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
 
 use farfield_protocol::FormatError;
-use farfield_protocol::file::{AttributeFlags, FileHeader, HierarchyKind, PageEntry, place_pages};
+use farfield_protocol::directory::{Directory, lay_out_for};
+use farfield_protocol::file::{AttributeFlags, FileHeader, HierarchyKind, PageEntry};
 use farfield_protocol::page::{PageHeader, encode_page_with_payload};
+use farfield_protocol::paged_file::directory_of;
 use glam::DVec3;
 use rayon::prelude::*;
 
@@ -121,37 +123,27 @@ impl PageWriter {
             .out
             .into_inner()
             .map_err(|e| SpillError::Io(e.into_error()))?;
+        let mut header = header;
         let mut entries = self.entries;
-        place_pages(&mut entries);
+        let layout = lay_out_for(&mut header, &mut entries);
+        let directory = directory_of(&header, &layout.pages)?;
         Ok(SpilledFile {
-            header: FileHeader {
-                pages: entries,
-                ..header
-            },
+            header,
+            directory,
+            directory_pages: layout.pages,
             body: spill.path,
         })
     }
 
-    /// The file: `header` (whose directory is ignored) with the directory
-    /// of the pages written, placed right after the header; or why a page
+    /// The file: `header` (whose page counts and root directory page are
+    /// set here) with the directory of the pages written; or why a page
     /// could not be written.
     pub fn finish(mut self, header: FileHeader) -> Result<PagedFile, FormatError> {
         self.encode_pending();
         if let Some(e) = self.error {
             return Err(e);
         }
-        let mut entries = self.entries;
-        // Offsets are known once the page count, and so the header's
-        // length, is.
-        place_pages(&mut entries);
-        Ok(PagedFile {
-            header: FileHeader {
-                pages: entries,
-                ..header
-            },
-            pages: self.pages,
-            leaf_sources: Vec::new(),
-        })
+        PagedFile::assemble(header, self.entries, self.pages)
     }
 }
 
@@ -174,11 +166,15 @@ impl Spill {
     }
 }
 
-/// A finished file whose pages are in a file of their own: the header to
-/// write first, then `body`'s bytes (`farfield_store::write_atomic_parts`).
+/// A finished file whose pages are in a file of their own: the header and
+/// root directory page to write first, then `body`'s bytes, then the other
+/// directory pages (`farfield_store::write_atomic_parts`).
 #[derive(Debug)]
 pub struct SpilledFile {
     pub header: FileHeader,
+    pub directory: Directory,
+    /// The directory pages' bytes by number, the root first.
+    pub directory_pages: Vec<Vec<u8>>,
     /// The pages' bytes, in directory order.
     pub body: PathBuf,
 }
@@ -187,12 +183,11 @@ impl SpilledFile {
     /// The whole file in memory, for tests and small scenes.
     pub fn read(&self) -> std::io::Result<PagedFile> {
         let body = std::fs::read(&self.body)?;
-        let start = FileHeader::encoded_len(self.header.pages.len()) as u64;
+        let start = self.head().len() as u64;
         let pages = self
-            .header
-            .pages
-            .iter()
-            .map(|e| {
+            .directory
+            .entries()
+            .map(|(_, e)| {
                 let at = (e.offset - start) as usize;
                 body.get(at..at + e.length as usize)
                     .map(<[u8]>::to_vec)
@@ -201,9 +196,23 @@ impl SpilledFile {
             .collect::<std::io::Result<_>>()?;
         Ok(PagedFile {
             header: self.header.clone(),
+            directory: self.directory.clone(),
+            directory_pages: self.directory_pages.clone(),
             pages,
             leaf_sources: Vec::new(),
         })
+    }
+
+    /// What goes before the pages: the header and the root directory page.
+    pub fn head(&self) -> Vec<u8> {
+        let mut out = self.header.encode();
+        out.extend_from_slice(&self.directory_pages[0]);
+        out
+    }
+
+    /// What goes after the pages: the other directory pages.
+    pub fn tail(&self) -> Vec<u8> {
+        self.directory_pages[1..].concat()
     }
 }
 
@@ -299,7 +308,9 @@ impl SkeletonFirst {
             bounds_max: facts.bounds_max,
             root_center: facts.root_center,
             root_radius: facts.root_radius,
-            pages: Vec::new(),
+            page_count: 0,
+            directory_pages: 0,
+            root_directory: Default::default(),
         })
     }
 }

@@ -60,7 +60,8 @@ impl Settle {
                     .cut
                     .touched_pages()
                     .iter()
-                    .map(|&p| u64::from(h.header.pages[p as usize].length))
+                    .filter_map(|&p| h.directory().extent(p))
+                    .map(|e| u64::from(e.length))
                     .sum();
                 (needed > 0).then(|| stats.bytes_received as f64 / needed as f64)
             });

@@ -241,7 +241,11 @@ impl Viewer {
                     }
                     match h.insert_page(index, &bytes) {
                         Ok(()) => {
-                            recency.put(index, ());
+                            // Directory pages stay: small, and what
+                            // places the rest.
+                            if !h.directory().is_directory(index) {
+                                recency.put(index, ());
+                            }
                             inserted += 1;
                             evict(h, recency, *cache_bytes);
                         }
@@ -286,7 +290,19 @@ impl Viewer {
     ///
     /// Pages that arrived and wait to be inserted are not asked for: they
     /// are here already.
+    ///
+    /// A wish for a page whose directory page has not arrived becomes a
+    /// wish for that directory page, with its priority: every kind's
+    /// traversal reaches the directory as it reaches the pages.
     pub fn request(&mut self, wanted: &[PageWish]) {
+        let placed;
+        let wanted = match self.hierarchy.as_ref() {
+            Some(h) if wanted.iter().any(|w| !placeable(h, w.page)) => {
+                placed = place_wishes(h, wanted);
+                &placed[..]
+            }
+            _ => wanted,
+        };
         let kept = self.affordable(wanted);
         let Some(s) = self.session.as_mut() else {
             return;
@@ -317,9 +333,8 @@ impl Viewer {
                 continue;
             }
             let bytes = h
-                .header
-                .pages
-                .get(w.page as usize)
+                .directory()
+                .extent(w.page)
                 .map_or(0, |p| u64::from(p.length));
             if bytes > room {
                 break;
@@ -340,7 +355,7 @@ impl Viewer {
             pages
                 .iter()
                 .filter(|&&p| h.is_resident(p as usize))
-                .filter_map(|&p| h.header.pages.get(p as usize))
+                .filter_map(|&p| h.directory().extent(p))
                 .map(|p| u64::from(p.length))
                 .sum()
         });
@@ -395,6 +410,33 @@ fn evict(h: &mut Hierarchy, recency: &mut LruCache<u32, ()>, cache_bytes: usize)
         }
         h.evict_page(page);
     }
+}
+
+/// Whether the client can check page id `page` when it arrives: a
+/// directory page whose parent arrived, or a page whose entry did.
+fn placeable(h: &Hierarchy, page: u32) -> bool {
+    h.directory().extent(page).is_some()
+}
+
+/// `wanted` with each page the client cannot place yet replaced by the
+/// first directory page on its way there, each page once (at its most
+/// urgent wish's priority: `wanted` is most urgent first).
+fn place_wishes(h: &Hierarchy, wanted: &[PageWish]) -> Vec<PageWish> {
+    let mut seen = std::collections::HashSet::new();
+    wanted
+        .iter()
+        .filter_map(|w| {
+            let page = if placeable(h, w.page) {
+                w.page
+            } else {
+                h.directory()
+                    .path_to(w.page)
+                    .into_iter()
+                    .find(|&d| !h.directory().has(d))?
+            };
+            seen.insert(page).then_some(PageWish { page, ..*w })
+        })
+        .collect()
 }
 
 #[cfg(test)]

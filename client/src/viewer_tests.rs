@@ -40,8 +40,9 @@ fn viewer(file: &PagedFile, cache_bytes: usize) -> (Viewer, QueueTransport) {
     );
     wire.push(TransportEvent::Opened);
     wire.push(frame(encode_header_frame(&file.header.encode())));
+    wire.push(frame(encode_page_frame(&file.directory_pages[0])));
     wire.push(frame(encode_page_frame(&file.pages[0])));
-    assert_eq!(v.pump(Duration::ZERO).expect("pump"), 1);
+    assert_eq!(v.pump(Duration::ZERO).expect("pump"), 2);
     assert!(v.is_connected());
     assert!(v.hierarchy().expect("header").is_resident(0));
     assert_eq!(wire.connects(), vec!["ws://test/scenes/island/stream"]);
@@ -121,7 +122,7 @@ fn a_zero_budget_inserts_one_page_a_call_and_keeps_the_rest_in_order() {
 fn requests_stop_where_the_cache_could_not_keep_them_beside_the_frames_pages() {
     let file = scene();
     assert!(file.pages.len() >= 8, "{} pages", file.pages.len());
-    let len = |p: usize| file.header.pages[p].length as usize;
+    let len = |p: usize| file.pages[p].len();
     // Room for pages 0 and 1 (the frame's) and for pages 2 and 3 more.
     let budget = (0..4).map(len).sum::<usize>() + 8;
     let (mut v, wire) = viewer(&file, budget);
@@ -177,4 +178,83 @@ fn pages_waiting_to_be_inserted_are_not_asked_for_again() {
     v.pump(Duration::ZERO).expect("pump");
     let h = v.hierarchy().unwrap();
     assert!(h.is_resident(2) && h.is_resident(3), "and they were kept");
+}
+
+/// A scene of small pages, its directory in several directory pages.
+fn many_pages() -> PagedFile {
+    let mut params = Params::default();
+    params.set("size", 64);
+    params.set("trees", 2);
+    let options = BuildOptions {
+        page_bytes: 64,
+        ..BuildOptions::default()
+    };
+    let scene = load_input("gen:island", &params).expect("gen:island");
+    let file = build_spheres(scene, &options).expect("build").0;
+    assert!(file.header.directory_pages > 2, "{:?}", file.header);
+    file
+}
+
+#[test]
+fn a_page_past_the_root_is_wished_for_through_its_directory_page() {
+    let file = many_pages();
+    let (mut v, wire) = viewer(&file, usize::MAX);
+    let pages = file.header.page_count;
+    let last = pages - 1;
+    assert!(v.hierarchy().unwrap().directory().entry(last).is_none());
+    // A wish for the last page becomes one for the directory page that
+    // places it, at its priority.
+    wire.take_sent();
+    v.request(&[PageWish {
+        page: last,
+        priority: 7.0,
+    }]);
+    let directory = file.directory.path_to(last)[1];
+    assert!(directory > pages, "{directory}");
+    let asked: Vec<PageWish> = wire
+        .take_sent()
+        .iter()
+        .filter_map(|f| match farfield_protocol::codec::decode_control(f) {
+            Ok(farfield_protocol::messages::ClientMessage::Request { pages }) => Some(pages),
+            _ => None,
+        })
+        .flatten()
+        .collect();
+    assert_eq!(
+        asked,
+        vec![PageWish {
+            page: directory,
+            priority: 7.0
+        }]
+    );
+    // Once it arrived (and the ones between), the page itself is placed.
+    for d in file.directory.path_to(last).into_iter().skip(1) {
+        let bytes = file.page_bytes(d).unwrap().to_vec();
+        wire.push(frame(encode_page_frame(&bytes)));
+    }
+    v.pump(Duration::ZERO).expect("pump");
+    assert!(v.hierarchy().unwrap().directory().entry(last).is_some());
+    wire.push(frame(encode_page_frame(&file.pages[last as usize])));
+    assert_eq!(v.pump(Duration::ZERO).expect("pump"), 1);
+    assert!(v.hierarchy().unwrap().is_resident(last as usize));
+}
+
+#[test]
+fn a_damaged_directory_page_is_refused_and_asked_for_again_like_a_page() {
+    let file = many_pages();
+    let (mut v, wire) = viewer(&file, usize::MAX);
+    let id = file.header.page_count + 1;
+    let mut bad = file.page_bytes(id).unwrap().to_vec();
+    bad[60] ^= 0x20;
+    for attempt in 1..=MAX_PAGE_FAILURES {
+        wire.push(frame(encode_page_frame(&bad)));
+        assert_eq!(v.pump(Duration::ZERO).expect("pump"), 0);
+        assert!(!v.hierarchy().unwrap().is_resident(id as usize));
+        assert_eq!(v.stats().pages_rejected, u64::from(attempt));
+    }
+    assert!(v.gave_up(id));
+    // The good bytes are still taken.
+    wire.push(frame(encode_page_frame(file.page_bytes(id).unwrap())));
+    assert_eq!(v.pump(Duration::ZERO).expect("pump"), 1);
+    assert!(v.hierarchy().unwrap().is_resident(id as usize));
 }

@@ -27,16 +27,19 @@ fuzz_target!(|data: &[u8]| {
         let encoded = header.encode();
         let again = FileHeader::decode(&encoded).expect("a re-encoded header decodes");
         assert_eq!(again, header, "a header survives encoding");
-        let _ = header.file_len();
-        for node in [
-            0,
-            header.nodes / 2,
-            header.nodes.saturating_sub(1),
-            header.nodes,
-        ] {
-            let _ = header.page_of(node);
-        }
-        if let Ok(h) = Hierarchy::new(header) {
+        if let Ok(mut h) = Hierarchy::new(header) {
+            // The root directory page from the bytes, as a client gets it.
+            let root = h.header.root_directory;
+            if let Some(root_bytes) = usize::try_from(root.offset).ok().and_then(|start| {
+                bytes.get(start..start.checked_add(root.length as usize)?)
+            }) {
+                let _ = h.insert_page(h.header.page_count, root_bytes);
+            }
+            let nodes = h.header.nodes;
+            for node in [0, nodes / 2, nodes.saturating_sub(1), nodes] {
+                let _ = h.directory().locate(node);
+            }
+            let _ = h.directory().file_len();
             farfield_fuzz::exercise(&h);
         }
     }

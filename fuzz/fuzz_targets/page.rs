@@ -130,7 +130,7 @@ fuzz_target!(|data: &[u8]| {
     if after > 0 {
         pages.push(entry(h.first_node + u64::from(h.node_count), after));
     }
-    let header = FileHeader {
+    let mut header = FileHeader {
         kind,
         attributes,
         node_bytes,
@@ -143,15 +143,27 @@ fuzz_target!(|data: &[u8]| {
         bounds_max: DVec3::splat(1.0),
         root_center: DVec3::ZERO,
         root_radius: 1.0,
-        pages,
+        page_count: 0,
+        directory_pages: 0,
+        root_directory: Default::default(),
     };
-    // Through the bytes, as a client gets it: only a header that decodes.
+    let directory = farfield_protocol::directory::lay_out_for(&mut header, &mut pages);
+    // Through the bytes, as a client gets it: only a header that decodes,
+    // and a directory whose pages insert.
     let Ok(header) = FileHeader::decode(&header.encode()) else {
         return;
     };
     let Ok(mut hierarchy) = Hierarchy::new(header) else {
         return;
     };
+    for (n, bytes) in directory.pages.iter().enumerate() {
+        if hierarchy
+            .insert_page(hierarchy.header.page_count + n as u32, bytes)
+            .is_err()
+        {
+            return;
+        }
+    }
     if hierarchy.insert_page(index, &page).is_ok() {
         farfield_fuzz::exercise(&hierarchy);
         // Inserted twice (a page that arrives again) and evicted.

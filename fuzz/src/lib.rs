@@ -16,7 +16,7 @@ use farfield_builder::import::{Params, load_input};
 use farfield_builder::scene::Primitives;
 use farfield_builder::{BuildOptions, build_spheres};
 use farfield_protocol::camera::Camera;
-use farfield_protocol::file::{FIXED_HEADER_BYTES, FileHeader, PAGE_ENTRY_BYTES};
+use farfield_protocol::file::{FileHeader, PAGE_ENTRY_BYTES};
 use farfield_protocol::hierarchy::Hierarchy;
 use farfield_protocol::page::PAGE_CHECKSUM_BYTES;
 use farfield_protocol::paged_file::{PagedFile, read_image};
@@ -138,10 +138,7 @@ pub fn import(ext: &str, data: &[u8]) {
 /// A built file as the store writes it, read back as a client would: every
 /// build must give a file that reads back.
 fn read_back(file: &PagedFile) {
-    let mut bytes = file.header.encode();
-    for page in &file.pages {
-        bytes.extend_from_slice(page);
-    }
+    let bytes = file.to_bytes();
     let h = read_image(&bytes).expect("a built file reads back");
     exercise(&h);
 }
@@ -168,30 +165,72 @@ pub fn exercise(h: &Hierarchy) {
 }
 
 /// Recomputes the checksums of a file's bytes in place where the bytes
-/// say where they are: each page the directory places inside `bytes`
-/// (its last four bytes and its directory entry), then the header's.
-/// Mutations elsewhere then reach the checks behind the checksums.
+/// say where they are: walking the directory pages from the header's root
+/// reference, each page an entry places inside `bytes` (its last four
+/// bytes and its entry), then each directory page (and the reference to
+/// it), children before parents, then the header's. Mutations elsewhere
+/// then reach the checks behind the checksums.
 pub fn fix_file_checksums(bytes: &mut [u8]) {
+    use farfield_protocol::directory::{DIRECTORY_HEADER_BYTES, DIRECTORY_REF_BYTES};
     let Ok(len) = FileHeader::peek_len(bytes) else {
         return;
     };
-    if len < FIXED_HEADER_BYTES + 4 || len > bytes.len() {
+    if len != FileHeader::ENCODED_LEN || len > bytes.len() {
         return;
     }
-    let pages = (len - FIXED_HEADER_BYTES - 4) / PAGE_ENTRY_BYTES;
-    for i in 0..pages {
-        let at = FIXED_HEADER_BYTES + i * PAGE_ENTRY_BYTES;
-        let offset = u64::from_le_bytes(bytes[at..at + 8].try_into().unwrap());
-        let length = u32::from_le_bytes(bytes[at + 8..at + 12].try_into().unwrap());
+    let u32_at = |b: &[u8], at: usize| u32::from_le_bytes(b[at..at + 4].try_into().unwrap());
+    let u64_at = |b: &[u8], at: usize| u64::from_le_bytes(b[at..at + 8].try_into().unwrap());
+    // (where the page is, where its checksum is kept), breadth-first.
+    let reference = 136;
+    let mut found: Vec<(std::ops::Range<usize>, usize)> = Vec::new();
+    let mut queue = vec![reference];
+    while let Some(at) = queue.pop() {
+        if found.len() > 4096 {
+            break;
+        }
+        let (offset, length) = (u64_at(bytes, at), u32_at(bytes, at + 8));
         let Some(range) = usize::try_from(offset)
             .ok()
             .and_then(|start| Some(start..start.checked_add(length as usize)?))
-            .filter(|r| r.end <= bytes.len() && r.len() >= PAGE_CHECKSUM_BYTES)
+            .filter(|r| r.end <= bytes.len() && r.len() >= DIRECTORY_HEADER_BYTES + 4)
         else {
             continue;
         };
+        if found.iter().any(|(r, _)| r.start == range.start) {
+            continue;
+        }
+        let page = &bytes[range.clone()];
+        let (entries, children) = (u32_at(page, 40) as usize, u32_at(page, 44) as usize);
+        let refs = DIRECTORY_HEADER_BYTES + entries.saturating_mul(PAGE_ENTRY_BYTES);
+        for c in 0..children.min(1024) {
+            let at = refs + c * DIRECTORY_REF_BYTES;
+            if at + DIRECTORY_REF_BYTES + 4 <= page.len() {
+                queue.push(range.start + at);
+            }
+        }
+        found.push((range, at + 12));
+    }
+    for (range, checksum_at) in found.into_iter().rev() {
+        let entries = u32_at(bytes, range.start + 40) as usize;
+        for e in 0..entries.min(4096) {
+            let at = range.start + DIRECTORY_HEADER_BYTES + e * PAGE_ENTRY_BYTES;
+            if at + PAGE_ENTRY_BYTES + 4 > range.end {
+                break;
+            }
+            let offset = u64_at(bytes, at);
+            let length = u32_at(bytes, at + 8);
+            let Some(page) = usize::try_from(offset)
+                .ok()
+                .and_then(|start| Some(start..start.checked_add(length as usize)?))
+                .filter(|r| r.end <= bytes.len() && r.len() >= PAGE_CHECKSUM_BYTES)
+            else {
+                continue;
+            };
+            let crc = fix_page_checksum(&mut bytes[page]);
+            bytes[at + 36..at + 40].copy_from_slice(&crc.to_le_bytes());
+        }
         let crc = fix_page_checksum(&mut bytes[range]);
-        bytes[at + 36..at + 40].copy_from_slice(&crc.to_le_bytes());
+        bytes[checksum_at..checksum_at + 4].copy_from_slice(&crc.to_le_bytes());
     }
     let crc = crc32fast_hash(&bytes[..len - 4]);
     bytes[len - 4..len].copy_from_slice(&crc.to_le_bytes());

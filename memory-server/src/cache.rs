@@ -599,6 +599,9 @@ mod tests {
         fn header(&self) -> &farfield_protocol::file::FileHeader {
             &self.file.header
         }
+        fn directory(&self) -> &farfield_protocol::directory::Directory {
+            &self.file.directory
+        }
         fn header_bytes(&self) -> &[u8] {
             self.file.header_bytes()
         }

@@ -19,6 +19,7 @@ use tokio::sync::watch;
 
 use super::ServeError;
 use farfield_protocol::codec::encode_header_frames;
+use farfield_protocol::directory::Directory;
 use farfield_protocol::file::{FileHeader, PageLayout};
 use farfield_store::{PageSource, Stamp, StoreError};
 
@@ -61,7 +62,7 @@ impl ServedScene {
             name: name.to_owned(),
             location: location.clone(),
             stamp: source.stamp(),
-            children: child_ranges(source.header()),
+            children: child_ranges(source.header(), source.directory()),
             header_frames: encode_header_frames(source.header_bytes())
                 .into_iter()
                 .map(Bytes::from)
@@ -123,25 +124,43 @@ impl ServedScene {
         }
     }
 
+    /// The scene's pages (directory pages not counted).
     pub fn page_count(&self) -> u32 {
-        u32::try_from(self.source.header().pages.len()).unwrap_or(u32::MAX)
+        self.source.header().page_count
     }
 
-    /// Stored length of `page` (as the directory says), if it exists.
+    /// Every page id a client may ask for: the scene's pages, then the
+    /// directory's.
+    pub fn id_count(&self) -> u32 {
+        self.source.directory().id_count()
+    }
+
+    /// Stored length of page id `page` (as the directory says), if it
+    /// exists.
     pub fn page_len(&self, page: u32) -> Option<u64> {
-        let e = self.source.header().pages.get(page as usize)?;
+        let e = self.source.directory().extent(page)?;
         Some(u64::from(e.length))
     }
 
-    /// Bytes of the largest page.
+    /// Bytes of the largest page, directory pages included.
     pub fn largest_page(&self) -> usize {
-        let pages = &self.source.header().pages;
-        pages.iter().map(|p| p.length as usize).max().unwrap_or(0)
+        let d = self.source.directory();
+        (0..d.id_count())
+            .filter_map(|id| d.extent(id))
+            .map(|e| e.length as usize)
+            .max()
+            .unwrap_or(0)
     }
 
     /// Pages holding the children of `page`'s nodes.
     pub fn child_pages(&self, page: u32) -> Range<u32> {
         self.children.get(page as usize).cloned().unwrap_or(0..0)
+    }
+
+    /// The directory pages a client needs, root first, to place `page`:
+    /// a page is never pushed before them.
+    pub fn directory_path(&self, page: u32) -> Vec<u32> {
+        self.source.directory().path_to(page)
     }
 
     /// The short description `GET /scenes` lists.
@@ -163,8 +182,9 @@ impl ServedScene {
         let mut v = self.summary();
         if let Value::Object(map) = &mut v {
             let extra = json!({
-                "pages": h.pages.len(),
-                "page_bytes_max": h.pages.iter().map(|p| p.length).max().unwrap_or(0),
+                "pages": h.page_count,
+                "directory_pages": h.directory_pages,
+                "page_bytes_max": self.source.directory().entries().map(|(_, p)| p.length).max().unwrap_or(0),
                 "levels": h.levels,
                 "leaves": h.leaves,
                 "node_bytes": h.node_bytes,
@@ -192,22 +212,23 @@ impl ServedScene {
 /// none to offer: its root's children are every leaf, so reading them
 /// ahead would read the whole scene. Its clients ask in their own order,
 /// which is the prefetch order.
-fn child_ranges(h: &FileHeader) -> Vec<Range<u32>> {
-    let n = h.pages.len();
+fn child_ranges(h: &FileHeader, d: &Directory) -> Vec<Range<u32>> {
+    let n = h.page_count;
     if h.kind.layout() == PageLayout::SkeletonFirst {
-        return vec![0..0; n];
+        return vec![0..0; n as usize];
     }
     (0..n)
         .map(|p| {
-            let start = h.pages[p].first_child;
-            let end = h.pages.get(p + 1).map_or(h.nodes, |e| e.first_child);
+            let (Some(e), Some(end)) = (d.entry(p), d.children_end(p)) else {
+                return 0..0;
+            };
+            let start = e.first_child;
             if end <= start {
                 return 0..0;
             }
-            match (h.page_of(start), h.page_of(end - 1)) {
+            match (d.page_of(start), d.page_of(end - 1)) {
                 (Some(first), Some(last)) => {
                     let first = first.max(p + 1);
-                    let (first, last) = (first as u32, last as u32);
                     if first > last { 0..0 } else { first..last + 1 }
                 }
                 _ => 0..0,

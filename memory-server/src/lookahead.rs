@@ -205,7 +205,10 @@ fn worker(rx: &Receiver<Pass>, cache: &PageCache, metrics: &Metrics) {
             }
             let header = pass.scene.source.header().clone();
             let kind = header.kind;
-            let Ok(hierarchy) = Hierarchy::new(header) else {
+            // The server holds the whole directory: the walk never waits
+            // for a directory page.
+            let directory = pass.scene.source.directory().clone();
+            let Ok(hierarchy) = Hierarchy::with_directory(header, directory) else {
                 continue;
             };
             walkers.insert(

@@ -306,7 +306,7 @@ pub(crate) async fn run(
     let wake = Arc::new(Notify::new());
     let shared = Shared {
         state: Mutex::new(State {
-            schedule: Schedule::new(window, allow_push, scene.page_count()),
+            schedule: Schedule::new(window, allow_push, scene.id_count()),
             outbox,
             outbox_bytes: first_bytes,
             outbox_limit: first_bytes + MAX_OUTBOX_BYTES,
@@ -319,13 +319,16 @@ pub(crate) async fn run(
         wake,
         member: app.demo.member_id(),
     };
-    // Page 0 goes ahead of anything the client can ask for.
+    // The root directory page, then page 0 (which it places), go ahead of
+    // anything the client can ask for: with the header, the first image.
     if scene.page_count() > 0 {
-        shared
-            .lock()
-            .schedule
-            .request_raw(0, PAGE_ZERO_PRIORITY, Instant::now());
-        app.metrics.queue_depth.fetch_add(1, Ordering::Relaxed);
+        let mut st = shared.lock();
+        let now = Instant::now();
+        for page in [scene.page_count(), 0] {
+            st.schedule.request_raw(page, PAGE_ZERO_PRIORITY, now);
+        }
+        drop(st);
+        app.metrics.queue_depth.fetch_add(2, Ordering::Relaxed);
         app.prefetch.hint(&scene, scene.child_pages(0));
     }
 
@@ -589,7 +592,7 @@ fn apply(
     app: &AppState,
 ) -> Result<Applied, End> {
     let now = Instant::now();
-    let pages = scene.page_count();
+    let pages = scene.id_count();
     match message {
         ClientMessage::Hello { .. } => {
             return Err(End::Malformed(CLOSE_PROTOCOL, "Hello sent twice".into()));
@@ -719,6 +722,36 @@ enum Action {
     Wait,
 }
 
+/// Offers the children of `page` (asked for with `priority`) for pushing,
+/// each after the directory pages that place it, which the client needs
+/// first to check it.
+fn offer_children(schedule: &mut Schedule, scene: &ServedScene, page: u32, priority: f32) {
+    let children = scene.child_pages(page);
+    if children.is_empty() {
+        return;
+    }
+    for end in [children.start, children.end - 1] {
+        for directory in scene.directory_path(end) {
+            if !schedule.was_sent(directory) {
+                schedule.offer_push(directory..directory + 1, priority);
+            }
+        }
+    }
+    schedule.offer_push(children, priority);
+}
+
+/// Whether the client has been sent every directory page that places
+/// `page` (a directory page places itself once its parent went).
+fn places(schedule: &Schedule, scene: &ServedScene, page: u32) -> bool {
+    if page >= scene.page_count() {
+        return true;
+    }
+    scene
+        .directory_path(page)
+        .iter()
+        .all(|&d| schedule.was_sent(d))
+}
+
 fn next_action(shared: &Shared, scene: &ServedScene, shutting_down: bool) -> Action {
     let mut st = shared.lock();
     if shutting_down {
@@ -803,6 +836,14 @@ async fn write_loop(
                 return end;
             }
             Action::Send(bytes) => bytes,
+            Action::Page(next)
+                if next.pushed && !places(&shared.lock().schedule, scene, next.page) =>
+            {
+                // Its directory page was not sent (cancelled, or out of
+                // the pushes' order): the client could not check it.
+                shared.lock().schedule.unsend(next.page);
+                continue;
+            }
             Action::Page(next) => {
                 // Out of the queue now, even if this future is dropped below.
                 if !next.pushed {
@@ -832,8 +873,7 @@ async fn write_loop(
                         if next.pushed {
                             st.stats.pushed += 1;
                         } else {
-                            st.schedule
-                                .offer_push(scene.child_pages(next.page), next.priority);
+                            offer_children(&mut st.schedule, scene, next.page, next.priority);
                         }
                         drop(st);
                         Metrics::add(&app.metrics.pages_served, 1);

@@ -126,7 +126,8 @@ fn hello_first_then_requests_cancels_and_acknowledgements() {
 fn a_corrupt_page_is_asked_for_again_and_given_up_after_three_failures() {
     let file = scene();
     let (mut s, wire) = connected(&file);
-    let mut h = Hierarchy::new(file.header.clone()).expect("header");
+    let mut h =
+        Hierarchy::with_directory(file.header.clone(), file.directory.clone()).expect("header");
     h.insert_page(0, &file.pages[0]).expect("page 0");
     let mut bad = file.pages[2].clone();
     bad[40] ^= 0x20;

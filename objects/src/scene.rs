@@ -5,8 +5,9 @@ use std::sync::Arc;
 
 use bytes::Bytes;
 use farfield_protocol::FormatError;
+use farfield_protocol::directory::Directory;
 use farfield_protocol::file::FileHeader;
-use farfield_store::verify::{HeaderError, page_entry, read_header, verify_page};
+use farfield_store::verify::{HeaderError, page_extent, read_header, verify_page};
 use farfield_store::{ObjectStamp, PageError, PageSource, RemoteStats, Stamp, StoreError};
 
 use crate::{Bucket, RemoteError};
@@ -21,6 +22,7 @@ pub struct ObjectScene {
     bucket: Arc<Bucket>,
     key: String,
     header: FileHeader,
+    directory: Directory,
     header_bytes: Vec<u8>,
     stamp: ObjectStamp,
     /// A hash of the bucket, key and version: the tier's name for it.
@@ -29,7 +31,8 @@ pub struct ObjectScene {
 
 impl ObjectScene {
     /// Opens object `key` of `bucket`: its size and version, then its
-    /// header (one range request, two for a long directory).
+    /// header and directory (one range request for the header and the
+    /// root directory page, one for the directory pages at its end).
     pub fn open(bucket: Arc<Bucket>, key: &str) -> Result<Self, StoreError> {
         let location = format!("s3://{}/{key}", bucket.url().bucket);
         let remote = |e: RemoteError| StoreError::Remote {
@@ -38,8 +41,10 @@ impl ObjectScene {
         };
         let stamp = bucket.head(key).map_err(remote)?;
         let e_tag = stamp.e_tag.as_deref();
-        let (header, header_bytes) = read_header(stamp.len, |n| {
-            bucket.get_range(key, 0..n, e_tag).map(|b| b.to_vec())
+        let stored = read_header(stamp.len, |offset, n| {
+            bucket
+                .get_range(key, offset..offset + n, e_tag)
+                .map(|b| b.to_vec())
         })
         .map_err(|e| match e {
             HeaderError::Read(e) => remote(e),
@@ -64,8 +69,9 @@ impl ObjectScene {
         Ok(Self {
             bucket,
             key: key.to_owned(),
-            header,
-            header_bytes,
+            header: stored.header,
+            directory: stored.directory,
+            header_bytes: stored.bytes,
             stamp,
             version,
         })
@@ -78,9 +84,9 @@ impl ObjectScene {
 
     /// Page `index` from the store, verified, and kept in the tier.
     fn fetch_page(&self, index: u32) -> Result<Vec<u8>, PageError> {
-        let entry = page_entry(&self.header, index as usize)?;
+        let entry = page_extent(&self.directory, index as usize)?;
         let bytes = self.get(entry.offset..entry.offset + u64::from(entry.length))?;
-        verify_page(&self.header, index as usize, &bytes)?;
+        verify_page(&self.header, &self.directory, index as usize, &bytes)?;
         self.keep_in_tier(index, &bytes);
         Ok(bytes.to_vec())
     }
@@ -89,11 +95,11 @@ impl ObjectScene {
     /// by side within the coalescing limit, else one each.
     fn fetch_pages(&self, pages: Range<u32>) -> Vec<Result<Vec<u8>, PageError>> {
         let each = || pages.clone().map(|p| self.fetch_page(p)).collect();
-        let entries = match self
-            .header
-            .pages
-            .get(pages.start as usize..pages.end as usize)
-        {
+        let entries: Option<Vec<_>> = pages
+            .clone()
+            .map(|p| page_extent(&self.directory, p as usize).ok())
+            .collect();
+        let entries = match entries {
             Some(entries) if entries.len() > 1 => entries,
             _ => return each(),
         };
@@ -111,7 +117,7 @@ impl ObjectScene {
         };
         pages
             .clone()
-            .zip(entries)
+            .zip(&entries)
             .map(|(index, entry)| {
                 let at = (entry.offset - first.offset) as usize;
                 let bytes =
@@ -121,7 +127,7 @@ impl ObjectScene {
                             needed: u64::from(entry.length),
                             have: span.len().saturating_sub(at) as u64,
                         })?;
-                verify_page(&self.header, index as usize, bytes)?;
+                verify_page(&self.header, &self.directory, index as usize, bytes)?;
                 self.keep_in_tier(index, bytes);
                 Ok(bytes.to_vec())
             })
@@ -139,7 +145,7 @@ impl ObjectScene {
         let tier = self.bucket.tier()?;
         let name = self.tier_name(index);
         let bytes = tier.get(&name)?;
-        if verify_page(&self.header, index as usize, &bytes).is_err() {
+        if verify_page(&self.header, &self.directory, index as usize, &bytes).is_err() {
             tier.remove(&name);
             return None;
         }
@@ -174,6 +180,10 @@ impl ObjectScene {
 impl PageSource for ObjectScene {
     fn header(&self) -> &FileHeader {
         &self.header
+    }
+
+    fn directory(&self) -> &Directory {
+        &self.directory
     }
 
     fn header_bytes(&self) -> &[u8] {

@@ -1,21 +1,24 @@
-//! The file header and page directory of a paged hierarchy file.
+//! The file header and the entries of the page directory.
 //!
-//! A file is `[header][directory][header crc32][page 0][page 1]...`, all
-//! little-endian; `FORMAT.md` in this crate is the byte-level description.
-//! The header is small and self-checking, so a reader learns the scene's
-//! bounds, attributes and where every page lives from one short read, and
-//! page 0 right after it is the whole model at low resolution.
+//! A file is `[header][root directory page][page 0][page 1]...[directory
+//! pages]`, all little-endian; `FORMAT.md` in this crate is the byte-level
+//! description. The header has one size whatever the scene and checks
+//! itself; it says where the root directory page is ([`crate::directory`]),
+//! which holds the first pages' entries, and page 0 after it is the whole
+//! model at low resolution: the first image is one short read.
 
 use glam::DVec3;
 
 use crate::FormatError;
+use crate::directory::DirRef;
 
 /// The eight bytes every farfield file starts with.
 pub const MAGIC: [u8; 8] = *b"FARFIELD";
-/// Bumped whenever a reader of the previous version would misread the bytes.
-pub const FORMAT_VERSION: u32 = 2;
-/// Bytes of the fixed part of the header, before the directory.
-pub const FIXED_HEADER_BYTES: usize = 136;
+/// Bumped whenever a reader of the previous version would misread the
+/// bytes. 3: the directory is paged; the header has a fixed size.
+pub const FORMAT_VERSION: u32 = 3;
+/// Bytes of the header before its checksum.
+pub const FIXED_HEADER_BYTES: usize = 192;
 /// Bytes of one directory entry.
 pub const PAGE_ENTRY_BYTES: usize = 40;
 /// The header's first bytes (magic, version, length), which say how long
@@ -53,7 +56,7 @@ impl AttributeFlags {
 }
 
 /// Where one page lives and which nodes it holds.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub struct PageEntry {
     /// Byte offset of the page in the file.
     pub offset: u64,
@@ -90,12 +93,29 @@ impl PageEntry {
     }
 }
 
-/// Sets each entry's offset: pages follow the header, in order.
-pub fn place_pages(entries: &mut [PageEntry]) {
-    let mut offset = FileHeader::encoded_len(entries.len()) as u64;
-    for e in entries {
-        e.offset = offset;
-        offset += u64::from(e.length);
+impl PageEntry {
+    pub(crate) fn encode(&self, out: &mut Vec<u8>) {
+        put_u64(out, self.offset);
+        put_u32(out, self.length);
+        put_u32(out, self.node_count);
+        put_u64(out, self.first_node);
+        put_u64(out, self.first_child);
+        out.extend_from_slice(&self.level_min.to_le_bytes());
+        out.extend_from_slice(&self.level_max.to_le_bytes());
+        put_u32(out, self.checksum);
+    }
+
+    pub(crate) fn decode(r: &mut Reader) -> Result<Self, FormatError> {
+        Ok(Self {
+            offset: r.u64()?,
+            length: r.u32()?,
+            node_count: r.u32()?,
+            first_node: r.u64()?,
+            first_child: r.u64()?,
+            level_min: r.u16()?,
+            level_max: r.u16()?,
+            checksum: r.u32()?,
+        })
     }
 }
 
@@ -121,27 +141,31 @@ pub struct FileHeader {
     /// The root node's sphere; every other node is relative to its parent.
     pub root_center: DVec3,
     pub root_radius: f64,
-    pub pages: Vec<PageEntry>,
+    /// Pages of the scene (directory pages not counted).
+    pub page_count: u32,
+    /// Directory pages, the root included.
+    pub directory_pages: u32,
+    /// Where the root directory page is: right after the header.
+    pub root_directory: DirRef,
 }
 
 impl FileHeader {
-    /// Bytes of header, directory and header checksum: where page 0 starts.
-    pub fn encoded_len(page_count: usize) -> usize {
-        FIXED_HEADER_BYTES + page_count * PAGE_ENTRY_BYTES + 4
-    }
+    /// Bytes of the header, its checksum included: the same for every
+    /// scene.
+    pub const ENCODED_LEN: usize = FIXED_HEADER_BYTES + 4;
 
-    /// Serializes the header, directory and its checksum.
+    /// Serializes the header and its checksum.
     pub fn encode(&self) -> Vec<u8> {
-        let mut out = Vec::with_capacity(Self::encoded_len(self.pages.len()));
+        let mut out = Vec::with_capacity(Self::ENCODED_LEN);
         out.extend_from_slice(&MAGIC);
         put_u32(&mut out, FORMAT_VERSION);
-        put_u32(&mut out, Self::encoded_len(self.pages.len()) as u32);
+        put_u32(&mut out, Self::ENCODED_LEN as u32);
         out.push(self.kind as u8);
         out.push(self.attributes.to_bits());
         out.extend_from_slice(&[self.cluster, 0]);
         put_u32(&mut out, self.node_bytes);
         put_u32(&mut out, self.levels);
-        put_u32(&mut out, self.pages.len() as u32);
+        put_u32(&mut out, self.page_count);
         put_u64(&mut out, self.nodes);
         put_u64(&mut out, self.leaves);
         put_u64(&mut out, self.input_vertices);
@@ -151,17 +175,10 @@ impl FileHeader {
             }
         }
         put_f64(&mut out, self.root_radius);
+        self.root_directory.encode(&mut out);
+        put_u32(&mut out, self.directory_pages);
+        put_u32(&mut out, 0);
         debug_assert_eq!(out.len(), FIXED_HEADER_BYTES);
-        for p in &self.pages {
-            put_u64(&mut out, p.offset);
-            put_u32(&mut out, p.length);
-            put_u32(&mut out, p.node_count);
-            put_u64(&mut out, p.first_node);
-            put_u64(&mut out, p.first_child);
-            out.extend_from_slice(&p.level_min.to_le_bytes());
-            out.extend_from_slice(&p.level_max.to_le_bytes());
-            put_u32(&mut out, p.checksum);
-        }
         let crc = crc32fast::hash(&out);
         put_u32(&mut out, crc);
         out
@@ -188,9 +205,10 @@ impl FileHeader {
     /// Parses and verifies a header. `bytes` may extend past the header.
     pub fn decode(bytes: &[u8]) -> Result<Self, FormatError> {
         let len = Self::peek_len(bytes)?;
-        if len < FIXED_HEADER_BYTES + 4 {
+        if len != Self::ENCODED_LEN {
             return Err(FormatError::BadHeader(format!(
-                "header length {len} is too small"
+                "header length {len} is not {}",
+                Self::ENCODED_LEN
             )));
         }
         if bytes.len() < len {
@@ -218,12 +236,7 @@ impl FileHeader {
         r.u8()?;
         let node_bytes = r.u32()?;
         let levels = r.u32()?;
-        let page_count = r.u32()? as usize;
-        if Self::encoded_len(page_count) != len {
-            return Err(FormatError::BadHeader(format!(
-                "{page_count} pages do not fit a header of {len} bytes"
-            )));
-        }
+        let page_count = r.u32()?;
         let nodes = r.u64()?;
         let leaves = r.u64()?;
         let input_vertices = r.u64()?;
@@ -234,19 +247,8 @@ impl FileHeader {
         let bounds_max = vec3(&mut r)?;
         let root_center = vec3(&mut r)?;
         let root_radius = r.f64()?;
-        let mut pages = Vec::with_capacity(page_count);
-        for _ in 0..page_count {
-            pages.push(PageEntry {
-                offset: r.u64()?,
-                length: r.u32()?,
-                node_count: r.u32()?,
-                first_node: r.u64()?,
-                first_child: r.u64()?,
-                level_min: r.u16()?,
-                level_max: r.u16()?,
-                checksum: r.u32()?,
-            });
-        }
+        let root_directory = DirRef::decode(&mut r)?;
+        let directory_pages = r.u32()?;
         let header = Self {
             kind,
             attributes,
@@ -260,7 +262,9 @@ impl FileHeader {
             bounds_max,
             root_center,
             root_radius,
-            pages,
+            page_count,
+            directory_pages,
+            root_directory,
         };
         header.check()?;
         Ok(header)
@@ -278,57 +282,33 @@ impl FileHeader {
             return bad("bounds are not finite".into());
         }
         self.kind.check_header(self).or_else(bad)?;
-        let mut next = 0u64;
-        for (i, p) in self.pages.iter().enumerate() {
-            if p.first_node != next || p.node_count == 0 {
-                return bad(format!("page {i} does not continue the node order"));
-            }
-            if p.offset.checked_add(u64::from(p.length)).is_none() {
-                return bad(format!(
-                    "page {i} ends past the largest possible file (offset {}, {} bytes)",
-                    p.offset, p.length
-                ));
-            }
-            next += u64::from(p.node_count);
-        }
-        if next != self.nodes {
+        let root = &self.root_directory;
+        // Every page holds a node, every directory page describes a page
+        // at least (leaves more, inner pages more leaves).
+        if self.page_count == 0 || u64::from(self.page_count) > self.nodes {
             return bad(format!(
-                "pages hold {next} nodes, header says {}",
-                self.nodes
+                "{} pages for {} nodes",
+                self.page_count, self.nodes
             ));
         }
-        // Each page's children are the nodes from its first child to the
-        // next page's (`Hierarchy::insert_page` checks its child counts
-        // against that), so first children never go back or past the end.
-        let mut first_child = 0;
-        for (i, p) in self.pages.iter().enumerate() {
-            if p.first_child < first_child || p.first_child > self.nodes {
-                return bad(format!(
-                    "page {i}'s first child {} is out of order (after {first_child}, of {} nodes)",
-                    p.first_child, self.nodes
-                ));
-            }
-            first_child = p.first_child;
+        if self.directory_pages == 0 || self.directory_pages > self.page_count {
+            return bad(format!(
+                "{} directory pages for {} pages",
+                self.directory_pages, self.page_count
+            ));
+        }
+        if root.number != 0
+            || root.first_page != 0
+            || root.page_count != self.page_count
+            || root.first_node != 0
+            || root.first_child > self.nodes
+            || root.offset != Self::ENCODED_LEN as u64
+        {
+            return bad(
+                "the root directory page is not the whole scene's, after the header".into(),
+            );
         }
         Ok(())
-    }
-
-    /// Index of the page holding breadth-first node `node`.
-    pub fn page_of(&self, node: u64) -> Option<usize> {
-        let i = self.pages.partition_point(|p| p.first_node <= node);
-        let i = i.checked_sub(1)?;
-        (node < self.pages[i].first_node + u64::from(self.pages[i].node_count)).then_some(i)
-    }
-
-    /// Total bytes of the file this header describes (a decoded header's
-    /// pages all end before 2^64; any other saturates there).
-    pub fn file_len(&self) -> u64 {
-        self.pages
-            .iter()
-            .map(|p| p.offset.saturating_add(u64::from(p.length)))
-            .max()
-            .unwrap_or(0)
-            .max(Self::encoded_len(self.pages.len()) as u64)
     }
 }
 
@@ -393,28 +373,34 @@ impl<'a> Reader<'a> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::directory::lay_out;
 
-    fn header(pages: Vec<PageEntry>) -> FileHeader {
+    /// A header over `entries` (their directory laid out).
+    fn header(mut entries: Vec<PageEntry>) -> FileHeader {
+        let nodes = entries.iter().map(|p| u64::from(p.node_count)).sum();
+        let layout = lay_out(&mut entries, nodes);
         FileHeader {
             kind: HierarchyKind::Spheres,
             attributes: AttributeFlags::default(),
             node_bytes: 2,
             cluster: 0,
             levels: 1,
-            nodes: pages.iter().map(|p| u64::from(p.node_count)).sum(),
+            nodes,
             leaves: 1,
             input_vertices: 1,
             bounds_min: DVec3::ZERO,
             bounds_max: DVec3::ONE,
             root_center: DVec3::splat(0.5),
             root_radius: 1.0,
-            pages,
+            page_count: entries.len() as u32,
+            directory_pages: layout.count(),
+            root_directory: layout.root,
         }
     }
 
-    fn page(offset: u64, length: u32, first_node: u64) -> PageEntry {
+    fn page(length: u32, first_node: u64) -> PageEntry {
         PageEntry {
-            offset,
+            offset: 0,
             length,
             node_count: 1,
             first_node,
@@ -425,43 +411,51 @@ mod tests {
         }
     }
 
-    /// A file of the uncompressed version 1 (pages without a codec byte)
-    /// is refused with advice, not misread.
+    /// A file of version 2 (the whole directory in its header) is refused
+    /// with advice, not misread.
     #[test]
     fn an_older_version_is_refused_with_advice_to_rebuild() {
-        let mut bytes = header(vec![page(180, 40, 0)]).encode();
-        bytes[8..12].copy_from_slice(&1u32.to_le_bytes());
+        let mut bytes = header(vec![page(40, 0)]).encode();
+        bytes[8..12].copy_from_slice(&2u32.to_le_bytes());
         let e = FileHeader::decode(&bytes).unwrap_err();
         assert_eq!(
             e,
             FormatError::UnsupportedVersion {
-                found: 1,
-                supported: 2
+                found: 2,
+                supported: 3
             }
         );
         assert!(e.to_string().contains("rebuild"), "{e}");
     }
 
-    /// Found by the `header` fuzz target: a page whose offset plus length
-    /// passes 2^64 overflowed in `file_len`, which the server calls on
-    /// every scene it opens (a panic with overflow checks, a wrong length
-    /// without).
+    /// The header's size does not grow with the scene.
     #[test]
-    fn a_page_ending_past_2_to_the_64_is_refused() {
-        let ok = header(vec![page(180, 40, 0), page(u64::MAX - 40, 40, 1)]);
-        let decoded = FileHeader::decode(&ok.encode()).unwrap();
-        assert_eq!(decoded.file_len(), u64::MAX);
-        let bad = header(vec![page(180, 40, 0), page(u64::MAX - 39, 40, 1)]);
-        let e = FileHeader::decode(&bad.encode()).unwrap_err();
-        assert_eq!(
-            e.to_string(),
-            format!(
-                "header: page 1 ends past the largest possible file (offset {}, 40 bytes)",
-                u64::MAX - 39
-            )
+    fn the_header_has_one_size_for_10_pages_and_for_100_000() {
+        let pages = |n: u64| (0..n).map(|i| page(100, i)).collect::<Vec<_>>();
+        let small = header(pages(10));
+        let large = header(pages(100_000));
+        assert!(large.directory_pages > 1, "{}", large.directory_pages);
+        assert_eq!(small.encode().len(), FileHeader::ENCODED_LEN);
+        assert_eq!(large.encode().len(), FileHeader::ENCODED_LEN);
+        assert_eq!(FileHeader::decode(&large.encode()).unwrap(), large);
+    }
+
+    /// Counts no file can have are refused before anything is allocated
+    /// for them.
+    #[test]
+    fn impossible_counts_are_refused() {
+        let mut h = header(vec![page(40, 0), page(40, 1)]);
+        h.page_count = 3;
+        assert!(
+            FileHeader::decode(&h.encode()).is_err(),
+            "more pages than nodes"
         );
-        // A header built in memory still measures without overflowing.
-        assert_eq!(bad.file_len(), u64::MAX);
+        let mut h = header(vec![page(40, 0), page(40, 1)]);
+        h.directory_pages = u32::MAX;
+        assert!(FileHeader::decode(&h.encode()).is_err(), "directory pages");
+        let mut h = header(vec![page(40, 0)]);
+        h.root_directory.offset += 1;
+        assert!(FileHeader::decode(&h.encode()).is_err(), "root elsewhere");
     }
 
     /// Found by the `header` fuzz target: a PLP header claiming 2^64 - 1
@@ -470,7 +464,7 @@ mod tests {
     fn a_plp_header_with_every_leaf_is_refused_without_overflow() {
         let mut plp = header(vec![PageEntry {
             first_child: 1,
-            ..page(180, 40, 0)
+            ..page(40, 0)
         }]);
         plp.kind = HierarchyKind::Plp;
         plp.node_bytes = crate::plp_codec::NODE_BYTES as u32;

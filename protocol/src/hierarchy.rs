@@ -12,6 +12,7 @@ use glam::{DVec3, Vec3};
 use crate::FormatError;
 use crate::bsp_codec::{BspSkeleton, ContentPage};
 use crate::cube_codec::{self, Channels, CubeRecord, Payload};
+use crate::directory::Directory;
 use crate::file::FileHeader;
 use crate::page::{Page, PageHeader};
 use crate::plp_codec::{CellPage, Skeleton};
@@ -136,32 +137,59 @@ pub struct DecodedNode {
 pub struct Hierarchy {
     pub header: FileHeader,
     pub layout: NodeLayout,
-    pages: Vec<Option<ResidentPage>>,
+    /// The directory known so far (all of it for a file read whole).
+    directory: Directory,
+    /// By page index, grown as pages arrive: a header's page count is
+    /// never allocated for, so memory follows what was visited.
+    pages: Vec<Option<Box<ResidentPage>>>,
     resident_bytes: usize,
 }
 
 impl Hierarchy {
-    /// An empty hierarchy: nothing resident yet.
+    /// An empty hierarchy: nothing resident yet, not even the directory.
     pub fn new(header: FileHeader) -> Result<Self, FormatError> {
+        let directory = Directory::new(&header);
+        Self::with_directory(header, directory)
+    }
+
+    /// An empty hierarchy over a directory already read (whole, by a
+    /// reader of the whole file).
+    pub fn with_directory(header: FileHeader, directory: Directory) -> Result<Self, FormatError> {
         let layout = NodeLayout {
             normals: header.attributes.normals,
             color: header.attributes.color,
         };
         header.kind.check_node_layout(layout, header.node_bytes)?;
-        let pages = vec![None; header.pages.len()];
         Ok(Self {
             header,
             layout,
-            pages,
+            directory,
+            pages: Vec::new(),
             resident_bytes: 0,
         })
     }
 
+    /// The page directory known so far.
+    pub fn directory(&self) -> &Directory {
+        &self.directory
+    }
+
+    /// Every page id there is: the scene's pages, then the directory's
+    /// ([`Directory::id_count`]).
+    pub fn id_count(&self) -> u32 {
+        self.directory.id_count()
+    }
+
     /// Verifies page `index` and makes it resident. A page that fails its
     /// checksum, carries another checksum than the directory's, or does
-    /// not agree with the directory is rejected whole.
+    /// not agree with the directory is rejected whole, as is a page whose
+    /// directory page has not arrived. A directory page (an index past the
+    /// scene's pages) joins the directory.
     pub fn insert_page(&mut self, index: u32, bytes: &[u8]) -> Result<(), FormatError> {
-        let page = crate::page::check_page(&self.header, index, bytes)?;
+        if self.directory.is_directory(index) {
+            return self.directory.insert(index, bytes);
+        }
+        let page = crate::page::check_page(&self.header, &self.directory, index, bytes)?;
         let h = page.header;
         let (child_counts, payload) = self.header.kind.decode_page(self, &page)?;
         // Every child must be a real node after its parent, and the page's
@@ -185,11 +213,11 @@ impl Hierarchy {
             child_offset.push(sum as u32);
             sum += u64::from(count);
         }
+        // Known whenever the page's entry is (the check above found it).
         let next_first_child = self
-            .header
-            .pages
-            .get(index as usize + 1)
-            .map_or(self.header.nodes, |p| p.first_child);
+            .directory
+            .children_end(index)
+            .unwrap_or(self.header.nodes);
         if h.first_child.checked_add(sum) != Some(next_first_child) || sum > u64::from(u32::MAX) {
             return Err(bad(format!(
                 "child indices out of range: {sum} children from node {}, where the directory has {}",
@@ -197,11 +225,15 @@ impl Hierarchy {
                 next_first_child.saturating_sub(h.first_child)
             )));
         }
-        if let Some(old) = &self.pages[index as usize] {
+        let slot = index as usize;
+        if self.pages.len() <= slot {
+            self.pages.resize_with(slot + 1, || None);
+        }
+        if let Some(old) = &self.pages[slot] {
             self.resident_bytes -= old.byte_len;
         }
         self.resident_bytes += bytes.len();
-        self.pages[index as usize] = Some(ResidentPage {
+        self.pages[slot] = Some(Box::new(ResidentPage {
             header: h,
             // Other kinds' records live decoded in their payload.
             records: if matches!(payload, PagePayload::Spheres) {
@@ -215,7 +247,7 @@ impl Hierarchy {
             child_offset,
             byte_len: bytes.len(),
             payload,
-        });
+        }));
         Ok(())
     }
 
@@ -376,11 +408,13 @@ impl Hierarchy {
     }
 
     pub fn page(&self, index: usize) -> Option<&ResidentPage> {
-        self.pages.get(index).and_then(Option::as_ref)
+        self.pages.get(index).and_then(Option::as_deref)
     }
 
+    /// Whether page id `index` is here: a resident page, or a directory
+    /// page inserted.
     pub fn is_resident(&self, index: usize) -> bool {
-        self.page(index).is_some()
+        self.page(index).is_some() || u32::try_from(index).is_ok_and(|id| self.directory.has(id))
     }
 
     pub fn resident_pages(&self) -> usize {
@@ -437,10 +471,10 @@ impl Hierarchy {
             if parent.children == 0 {
                 continue;
             }
-            let Some(page_index) = self.header.page_of(parent.first_child) else {
+            let Some(page_index) = self.directory.page_of(parent.first_child) else {
                 continue;
             };
-            let Some(page) = self.page(page_index) else {
+            let Some(page) = self.page(page_index as usize) else {
                 continue;
             };
             if !Self::group_fits(page, parent.first_child, parent.children) {
@@ -522,7 +556,7 @@ mod tests {
         first_child: u64,
         rest: u32,
         next_first_child: u64,
-    ) -> (FileHeader, Vec<u8>) {
+    ) -> (FileHeader, Vec<PageEntry>, Vec<u8>) {
         let layout = NodeLayout {
             normals: false,
             color: false,
@@ -565,44 +599,55 @@ mod tests {
             bounds_max: DVec3::ONE,
             root_center: DVec3::splat(0.5),
             root_radius: 1.0,
-            pages: vec![entry(0, 1, first_child), entry(1, rest, next_first_child)],
+            page_count: 0,
+            directory_pages: 0,
+            root_directory: Default::default(),
         };
-        (header, bytes)
+        let entries = vec![entry(0, 1, first_child), entry(1, rest, next_first_child)];
+        (header, entries, bytes)
+    }
+
+    /// A hierarchy over `header` and the directory of `entries`, its
+    /// directory pages inserted (as a client has it once they arrived).
+    fn with_directory(
+        mut header: FileHeader,
+        mut entries: Vec<PageEntry>,
+    ) -> Result<Hierarchy, FormatError> {
+        let layout = crate::directory::lay_out_for(&mut header, &mut entries);
+        let mut h = Hierarchy::new(FileHeader::decode(&header.encode())?)?;
+        for (n, b) in layout.pages.iter().enumerate() {
+            h.insert_page(header.page_count + n as u32, b)?;
+        }
+        Ok(h)
     }
 
     /// Found by the `page` fuzz target: a page whose first child lies so
     /// far on that adding its children's count passed 2^64 overflowed in
-    /// the range check meant to refuse it. Such a directory is now refused
-    /// whole; a header made in memory still gets an error, not a panic.
+    /// the range check meant to refuse it. Such a directory is refused.
     #[test]
     fn children_past_2_to_the_64_are_out_of_range() {
-        let (header, page) = root_page(2, 1, 2, 3);
-        let mut h = Hierarchy::new(FileHeader::decode(&header.encode()).unwrap()).unwrap();
+        let (header, entries, page) = root_page(2, 1, 2, 3);
+        let mut h = with_directory(header, entries).unwrap();
         h.insert_page(0, &page).unwrap();
-        let (header, page) = root_page(2, u64::MAX - 1, 2, 3);
-        let e = FileHeader::decode(&header.encode()).unwrap_err();
-        assert!(e.to_string().contains("page 0's first child"), "{e}");
-        let e = Hierarchy::new(header)
-            .unwrap()
-            .insert_page(0, &page)
-            .unwrap_err();
-        assert!(e.to_string().contains("child indices out of range"), "{e}");
+        let (header, entries, _) = root_page(2, u64::MAX - 1, 2, 3);
+        let e = with_directory(header, entries).unwrap_err();
+        assert!(e.to_string().contains("root directory page"), "{e}");
     }
 
     /// A page replaced by another valid page (its own checksum recomputed)
     /// is refused: its checksum is not the one the directory holds.
     #[test]
     fn a_page_with_a_valid_checksum_other_than_the_directorys_is_refused() {
-        let (header, page) = root_page(2, 1, 2, 3);
+        let (header, entries, page) = root_page(2, 1, 2, 3);
         // The same page with its only record's child count edited, and its
         // checksum made to fit the edit.
-        let (_, edited) = root_page(3, 1, 2, 3);
+        let (_, _, edited) = root_page(3, 1, 2, 3);
         assert_ne!(page, edited);
         assert!(
             Page::parse(&edited, 0, header.node_bytes).is_ok(),
             "self-consistent"
         );
-        let mut h = Hierarchy::new(FileHeader::decode(&header.encode()).unwrap()).unwrap();
+        let mut h = with_directory(header, entries).unwrap();
         let e = h.insert_page(0, &edited).unwrap_err();
         assert!(e.to_string().contains("not the directory's"), "{e}");
         assert!(h.page(0).is_none(), "nothing was made resident");
@@ -615,8 +660,8 @@ mod tests {
     #[test]
     fn children_must_fill_the_directorys_range() {
         for next in [2, 4] {
-            let (header, page) = root_page(2, 1, 3, next);
-            let mut h = Hierarchy::new(FileHeader::decode(&header.encode()).unwrap()).unwrap();
+            let (header, entries, page) = root_page(2, 1, 3, next);
+            let mut h = with_directory(header, entries).unwrap();
             let e = h.insert_page(0, &page).unwrap_err();
             assert!(
                 e.to_string().ends_with(&format!(
@@ -634,30 +679,39 @@ mod tests {
     /// the hierarchy refuses what it refuses.
     #[test]
     fn one_page_check_compares_the_page_with_its_directory_entry() {
-        let (header, page) = root_page(2, 1, 2, 3);
-        assert!(crate::page::check_page(&header, 0, &page).is_ok());
+        let (header, entries, page) = root_page(2, 1, 2, 3);
+        let h = with_directory(header.clone(), entries.clone()).unwrap();
+        assert!(crate::page::check_page(&h.header, h.directory(), 0, &page).is_ok());
         for edit in [
-            |e: &mut crate::file::PageEntry| e.node_count += 1,
-            |e: &mut crate::file::PageEntry| e.first_child += 1,
+            |e: &mut [PageEntry]| {
+                e[0].node_count += 1;
+                e[1].first_node += 1;
+                e[1].node_count -= 1;
+            },
+            |e: &mut [PageEntry]| e[0].first_child += 1,
         ] {
-            let mut forged = header.clone();
-            edit(&mut forged.pages[0]);
-            let e = crate::page::check_page(&forged, 0, &page).unwrap_err();
+            let mut forged = entries.clone();
+            edit(&mut forged);
+            let mut h = with_directory(header.clone(), forged).unwrap();
+            let e = crate::page::check_page(&h.header, h.directory(), 0, &page).unwrap_err();
             assert!(
                 e.to_string().contains("disagrees with the directory"),
                 "{e}"
             );
-            let mut h = Hierarchy::new(forged).unwrap();
             assert!(h.insert_page(0, &page).is_err());
         }
-        let missing = crate::page::check_page(&header, 5, &page).unwrap_err();
+        let missing = crate::page::check_page(&h.header, h.directory(), 5, &page).unwrap_err();
         assert!(missing.to_string().contains("no such page"), "{missing}");
+        // Before its directory page, a page cannot be checked.
+        let mut bare = Hierarchy::new(h.header.clone()).unwrap();
+        let early = bare.insert_page(0, &page).unwrap_err();
+        assert!(early.to_string().contains("has not arrived"), "{early}");
     }
 
     /// The pages of a sphere file (records of identity spheres, so no
     /// node is ever smaller than the root) from (first node, first child,
     /// child counts) per page, and its header.
-    fn tree_file(pages: &[(u64, u64, &[usize])]) -> (FileHeader, Vec<Vec<u8>>) {
+    fn tree_file(pages: &[(u64, u64, &[usize])]) -> (FileHeader, Vec<PageEntry>, Vec<Vec<u8>>) {
         let layout = NodeLayout {
             normals: false,
             color: false,
@@ -687,7 +741,6 @@ mod tests {
             entries.push(PageEntry::of(&page, b.len(), checksum));
             bytes.push(b);
         }
-        crate::file::place_pages(&mut entries);
         let nodes = entries.iter().map(|e| u64::from(e.node_count)).sum();
         let header = FileHeader {
             kind: HierarchyKind::Spheres,
@@ -702,14 +755,16 @@ mod tests {
             bounds_max: DVec3::ONE,
             root_center: DVec3::splat(0.5),
             root_radius: 1.0,
-            pages: entries,
+            page_count: 0,
+            directory_pages: 0,
+            root_directory: Default::default(),
         };
-        (FileHeader::decode(&header.encode()).unwrap(), bytes)
+        (header, entries, bytes)
     }
 
     fn insert_all(pages: &[(u64, u64, &[usize])]) -> Result<Hierarchy, String> {
-        let (header, bytes) = tree_file(pages);
-        let mut h = Hierarchy::new(header).unwrap();
+        let (header, entries, bytes) = tree_file(pages);
+        let mut h = with_directory(header, entries).map_err(|e| e.to_string())?;
         for (i, b) in bytes.iter().enumerate() {
             h.insert_page(i as u32, b).map_err(|e| e.to_string())?;
         }

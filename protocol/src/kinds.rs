@@ -66,6 +66,12 @@ impl HierarchyKind {
         }
     }
 
+    /// Whether page 0 holds the root alone, its skeleton (the directory's
+    /// root page is checked for it: the header cannot say).
+    pub(crate) fn root_page_alone(self) -> bool {
+        self.layout() == PageLayout::SkeletonFirst
+    }
+
     /// Whether the nodes are QSplat's quantized spheres, which the
     /// reference decoder ([`Hierarchy::decode_all`]) reads.
     pub fn nodes_are_spheres(self) -> bool {
@@ -115,25 +121,19 @@ impl HierarchyKind {
                 if h.cluster != 0
                     || h.leaves.checked_add(1) != Some(h.nodes)
                     || h.levels != 2
-                    || h.pages.len() as u64 != h.nodes
-                    || h.pages
-                        .first()
-                        .is_some_and(|p| p.node_count != 1 || p.first_child != 1) =>
+                    || u64::from(h.page_count) != h.nodes
+                    || h.root_directory.first_child != 1 =>
             {
                 return Err(format!(
                     "a BSP file is a root alone in page 0 and one prototype or leaf a page after it ({} nodes, {} pages, cluster {})",
-                    h.nodes,
-                    h.pages.len(),
-                    h.cluster
+                    h.nodes, h.page_count, h.cluster
                 ));
             }
             HierarchyKind::Plp
                 if h.cluster != 0
                     || h.leaves.checked_add(1) != Some(h.nodes)
                     || h.levels != 2
-                    || h.pages
-                        .first()
-                        .is_some_and(|p| p.node_count != 1 || p.first_child != 1) =>
+                    || h.root_directory.first_child != 1 =>
             {
                 return Err(format!(
                     "a PLP tessellation is a root alone in page 0 and its cells after ({} nodes, {} leaves, cluster {})",

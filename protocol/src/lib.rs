@@ -4,8 +4,10 @@
 //! client reads, plus the CPU reference decoder that traversal walks
 //! (the traversals themselves are `farfield-traverse`).
 //!
-//! - [`file`]: the paged hierarchy file's [`file::FileHeader`] and
-//!   [`file::PageEntry`] directory (layout in `FORMAT.md`).
+//! - [`file`]: the paged hierarchy file's fixed-size [`file::FileHeader`]
+//!   and a page's [`file::PageEntry`] (layout in `FORMAT.md`);
+//!   [`directory`]: the page directory, itself in pages reached from the
+//!   header, which a client learns as it goes.
 //! - [`page`]: one page's [`page::PageHeader`], checksum and the verified
 //!   [`page::Page`] view a decoder reads nodes from.
 //! - [`sphere_codec`]: QSplat's quantized node: position and radius relative
@@ -33,6 +35,7 @@ pub mod bsp_codec;
 pub mod camera;
 pub mod codec;
 pub mod cube_codec;
+pub mod directory;
 pub mod file;
 pub mod hierarchy;
 pub mod kinds;

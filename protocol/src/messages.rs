@@ -12,7 +12,9 @@
 //!    close, e.g. for another protocol version), then the file header as
 //!    stored, in header frames of at most [`HEADER_PART_BYTES`] each, which
 //!    the client joins until it holds the length the header's first 16
-//!    bytes declare (at most [`MAX_HEADER_BYTES`]), then page 0;
+//!    bytes declare (at most [`MAX_HEADER_BYTES`]), then the root
+//!    directory page (page id: the scene's page count) and page 0;
+//!    further directory pages are asked for, and pushed, as pages are;
 //! 3. client -> [`ClientMessage::Request`] (pages with priorities; a later
 //!    request for a page still queued updates its priority; a request for a
 //!    page sent but not yet acknowledged is ignored, and one for a page
@@ -43,7 +45,9 @@
 use serde::{Deserialize, Serialize};
 
 /// Bumped whenever a message changes shape. 4: the header comes in parts.
-pub const PROTOCOL_VERSION: u32 = 4;
+/// 5: the header has a fixed size; the directory comes in directory pages,
+/// page ids after the scene's pages, the root's before page 0.
+pub const PROTOCOL_VERSION: u32 = 5;
 
 /// The most header bytes one header frame carries. A scene's header holds
 /// its page directory (40 bytes a page: 0.7 MB for 18,000 pages), and the

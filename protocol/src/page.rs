@@ -60,15 +60,16 @@ pub fn claimed_index(page: &[u8]) -> Option<u32> {
 /// decoded.
 pub fn check_page<'a>(
     header: &crate::file::FileHeader,
+    directory: &crate::directory::Directory,
     index: u32,
     bytes: &'a [u8],
 ) -> Result<Page<'a>, FormatError> {
-    check_stored_page(header, index, bytes)?.decode()
+    check_stored_page(header, directory, index, bytes)?.decode()
 }
 
 /// Everything [`check_page`] checks but the decoding of the body: page
-/// `index` of the file `header` describes exists, `bytes` agree with its
-/// directory entry (length and checksum, [`check_against_entry`]) and
+/// `index` of the file `header` describes exists and `directory` knows its
+/// entry, `bytes` agree with it (length and checksum, [`check_against_entry`]) and
 /// checksum themselves, have a page header of the file's kind whose body
 /// can hold its records, and say what the directory says (first node,
 /// node count, first child). The server stops here: the checksum, matched
@@ -77,16 +78,18 @@ pub fn check_page<'a>(
 /// trusts no server, does anyway.
 pub fn check_stored_page<'a>(
     header: &crate::file::FileHeader,
+    directory: &crate::directory::Directory,
     index: u32,
     bytes: &'a [u8],
 ) -> Result<StoredPage<'a>, FormatError> {
-    let entry = *header
-        .pages
-        .get(index as usize)
-        .ok_or(FormatError::BadPage {
-            page: index,
-            message: format!("no such page ({} pages)", header.pages.len()),
-        })?;
+    let entry = directory.entry(index).ok_or_else(|| FormatError::BadPage {
+        page: index,
+        message: if index < header.page_count {
+            "its directory page has not arrived".into()
+        } else {
+            format!("no such page ({} pages)", header.page_count)
+        },
+    })?;
     check_against_entry(&entry, index, bytes)?;
     let page = StoredPage::parse(bytes, index, header.node_bytes)?;
     if !header.kind.pages_carry_payload() && page.decoded_len as usize != page.record_bytes {

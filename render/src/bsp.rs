@@ -181,7 +181,7 @@ pub(crate) fn place(
     else {
         return None;
     };
-    let key = (page, h.header.pages.get(page as usize)?.checksum);
+    let key = (page, h.directory().entry(page)?.checksum);
     prototypes.ensure(&gpu.device, &gpu.queue, key, &proto.triangles);
     let world = draw.world_from_local;
     if let Some(info) = h

@@ -117,12 +117,17 @@ fn temp_path(path: &Path, kind: &str) -> Result<PathBuf, StoreError> {
     )))
 }
 
-/// Writes a file made of `header` (its encoded bytes) and then the bytes of
-/// the file at `body` (pages a build spilled to disk) to `path`, through a
-/// temporary file and a rename, as [`write_atomic`] does. The body is
-/// copied by the kernel where it can (`copy_file_range`), never through
-/// memory whole.
-pub fn write_atomic_parts(path: &Path, header: &[u8], body: &Path) -> Result<u64, StoreError> {
+/// Writes a file made of `head` (the encoded header and root directory
+/// page), the bytes of the file at `body` (pages a build spilled to disk)
+/// and `tail` (the other directory pages) to `path`, through a temporary
+/// file and a rename, as [`write_atomic`] does. The body is copied by the
+/// kernel where it can (`copy_file_range`), never through memory whole.
+pub fn write_atomic_parts(
+    path: &Path,
+    head: &[u8],
+    body: &Path,
+    tail: &[u8],
+) -> Result<u64, StoreError> {
     let io = |error| StoreError::Io {
         path: path.to_owned(),
         error,
@@ -130,11 +135,12 @@ pub fn write_atomic_parts(path: &Path, header: &[u8], body: &Path) -> Result<u64
     let tmp = temp_path(path, "tmp")?;
     let result = (|| -> std::io::Result<u64> {
         let mut out = File::create(&tmp)?;
-        out.write_all(header)?;
+        out.write_all(head)?;
         let copied = std::io::copy(&mut File::open(body)?, &mut out)?;
+        out.write_all(tail)?;
         out.sync_all()?;
         std::fs::rename(&tmp, path)?;
-        Ok(header.len() as u64 + copied)
+        Ok(head.len() as u64 + copied + tail.len() as u64)
     })();
     if result.is_err() {
         let _ = std::fs::remove_file(&tmp);
@@ -151,10 +157,10 @@ pub fn write_atomic(path: &Path, file: &PagedFile) -> Result<u64, StoreError> {
     let tmp = temp_path(path, "tmp")?;
     let result = (|| -> std::io::Result<u64> {
         let mut out = BufWriter::new(File::create(&tmp)?);
-        let header = file.header.encode();
-        out.write_all(&header)?;
-        let mut written = header.len() as u64;
-        for page in &file.pages {
+        let head = file.head();
+        out.write_all(&head)?;
+        let mut written = head.len() as u64;
+        for page in file.pages.iter().chain(file.tail()) {
             out.write_all(page)?;
             written += page.len() as u64;
         }

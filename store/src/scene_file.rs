@@ -12,20 +12,23 @@ use std::fs::File;
 use std::path::{Path, PathBuf};
 
 use farfield_protocol::FormatError;
+use farfield_protocol::directory::Directory;
 use farfield_protocol::file::FileHeader;
 use farfield_protocol::hierarchy::Hierarchy;
 use farfield_protocol::page::{PAGE_CHECKSUM_BYTES, PAGE_HEADER_BYTES, check_page};
 
 use crate::StoreError;
 use crate::stamp::FileStamp;
-use crate::verify::{HeaderError, page_entry, read_header, verify_page};
+use crate::verify::{HeaderError, page_extent, read_header, verify_page};
 
 /// A paged file opened for reading.
 #[derive(Debug)]
 pub struct SceneFile {
     pub path: PathBuf,
     pub header: FileHeader,
-    /// The header as stored (fixed part, directory, checksum).
+    /// The whole directory, read and checked when the file was opened.
+    pub directory: Directory,
+    /// The header as stored (its fixed bytes and checksum).
     header_bytes: Vec<u8>,
     file: File,
     /// The file when it was opened (its length is the file's bytes).
@@ -46,9 +49,9 @@ impl SceneFile {
         };
         let file = File::open(path).map_err(io)?;
         let stamp = FileStamp::of(&file.metadata().map_err(io)?);
-        let (header, header_bytes) = read_header(stamp.len, |n| {
+        let stored = read_header(stamp.len, |offset, n| {
             let mut bytes = vec![0; n as usize];
-            read_exact_at(&file, &mut bytes, 0).map(|()| bytes)
+            read_exact_at(&file, &mut bytes, offset).map(|()| bytes)
         })
         .map_err(|e| match e {
             HeaderError::Read(error) => io(error),
@@ -56,8 +59,9 @@ impl SceneFile {
         })?;
         Ok(Self {
             path: path.to_owned(),
-            header,
-            header_bytes,
+            header: stored.header,
+            directory: stored.directory,
+            header_bytes: stored.bytes,
             file,
             stamp,
         })
@@ -78,7 +82,7 @@ impl SceneFile {
         }
     }
 
-    /// The file's header bytes as stored (fixed part, directory and CRC),
+    /// The file's header bytes as stored (fixed part and CRC),
     /// which the memory server sends verbatim so clients decode exactly
     /// what is on disk.
     pub fn header_bytes(&self) -> &[u8] {
@@ -90,7 +94,7 @@ impl SceneFile {
     /// error `out` is as it was. A file cut short under the reader is a
     /// truncated page, not a fault.
     pub fn read_page_into(&self, index: usize, out: &mut Vec<u8>) -> Result<(), FormatError> {
-        let e = page_entry(&self.header, index)?;
+        let e = page_extent(&self.directory, index)?;
         let start = out.len();
         out.resize(start + e.length as usize, 0);
         let read = read_exact_at(&self.file, &mut out[start..], e.offset)
@@ -105,7 +109,7 @@ impl SceneFile {
                     message: format!("cannot be read: {error}"),
                 },
             })
-            .and_then(|()| verify_page(&self.header, index, &out[start..]));
+            .and_then(|()| verify_page(&self.header, &self.directory, index, &out[start..]));
         if read.is_err() {
             out.truncate(start);
         }
@@ -129,11 +133,11 @@ impl SceneFile {
     pub fn survey_pages(&self) -> PageSurvey {
         let mut survey = PageSurvey::default();
         let mut buffer = Vec::new();
-        for i in 0..self.header.pages.len() {
+        for i in 0..self.header.page_count as usize {
             buffer.clear();
             let checked = self
                 .read_page_into(i, &mut buffer)
-                .and_then(|()| check_page(&self.header, i as u32, &buffer));
+                .and_then(|()| check_page(&self.header, &self.directory, i as u32, &buffer));
             match checked {
                 Ok(page) => {
                     let decoded = page.records().len() + page.payload().len();
@@ -160,9 +164,9 @@ impl SceneFile {
     /// Every page made resident in a fresh hierarchy; corrupt pages are
     /// reported, not loaded.
     pub fn load_all(&self) -> Result<Hierarchy, FormatError> {
-        let mut h = Hierarchy::new(self.header.clone())?;
+        let mut h = Hierarchy::with_directory(self.header.clone(), self.directory.clone())?;
         let mut buffer = Vec::new();
-        for i in 0..self.header.pages.len() {
+        for i in 0..self.header.page_count as usize {
             buffer.clear();
             self.read_page_into(i, &mut buffer)?;
             h.insert_page(i as u32, &buffer)?;

@@ -9,6 +9,7 @@
 use std::ops::Range;
 
 use farfield_protocol::FormatError;
+use farfield_protocol::directory::Directory;
 use farfield_protocol::file::FileHeader;
 
 /// Why a page could not be read.
@@ -32,7 +33,9 @@ pub enum PageError {
 pub trait PageSource: Send + Sync + std::fmt::Debug {
     /// The scene's header, decoded.
     fn header(&self) -> &FileHeader;
-    /// The header as stored (fixed part, directory and checksum), which the
+    /// The scene's whole directory, read when the source was opened.
+    fn directory(&self) -> &Directory;
+    /// The header as stored (its fixed bytes and checksum), which the
     /// server sends verbatim so clients decode exactly what is stored.
     fn header_bytes(&self) -> &[u8];
     /// Bytes of the whole scene as stored.
@@ -76,6 +79,10 @@ pub fn read_each<S: PageSource + ?Sized>(
 impl PageSource for crate::SceneFile {
     fn header(&self) -> &FileHeader {
         &self.header
+    }
+
+    fn directory(&self) -> &Directory {
+        &self.directory
     }
 
     fn header_bytes(&self) -> &[u8] {

@@ -532,7 +532,7 @@ fn corrupt_cube_pages_are_refused() {
     let file = cubes(tree(3000));
     write_atomic(&path, &file).unwrap();
     let mut bytes = std::fs::read(&path).unwrap();
-    let last = file.header.pages.last().unwrap();
+    let last = file.directory.entries().last().unwrap().1;
     bytes[(last.offset + u64::from(last.length) / 2) as usize] ^= 0x10;
     std::fs::write(&path, &bytes).unwrap();
     let report = crate::cli(&["inspect", path.to_str().unwrap(), "--json"]).unwrap();
@@ -562,9 +562,7 @@ fn corrupt_cube_pages_are_refused() {
             .unwrap();
             // A directory that agrees (a forged file), so the page reaches
             // the checks behind the checksums.
-            let mut header = file.header.clone();
-            header.pages[0].checksum = crc;
-            let mut h = Hierarchy::new(header).unwrap();
+            let mut h = crate::forged(&file, 0, crc);
             let e = h.insert_page(0, &bad).unwrap_err();
             assert!(e.to_string().contains("past"), "{e}");
             assert!(!h.is_resident(0));

@@ -327,16 +327,18 @@ fn every_kind_stores_compressed_pages_and_refuses_damaged_streams() {
                 let end = bad.len() - PAGE_CHECKSUM_BYTES;
                 let crc = crc32fast::hash(&bad[..end]);
                 bad[end..].copy_from_slice(&crc.to_le_bytes());
-                let mut header = h.clone();
-                header.pages[index].checksum = crc;
-                let mut client = Hierarchy::new(header).expect("header");
+                let mut client = crate::forged(&file, index, crc);
                 if client.insert_page(index as u32, &bad).is_ok() {
                     // A change deflate cannot see (a literal's value)
                     // must still decode to the page's own length and
                     // pass every check of the kind's records.
-                    let page =
-                        farfield_protocol::page::check_page(&client.header, index as u32, &bad)
-                            .expect("inserted");
+                    let page = farfield_protocol::page::check_page(
+                        &client.header,
+                        client.directory(),
+                        index as u32,
+                        &bad,
+                    )
+                    .expect("inserted");
                     assert_eq!(
                         page.records().len() + page.payload().len(),
                         StoredPage::parse(bytes, index as u32, h.node_bytes)

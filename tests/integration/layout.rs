@@ -4,6 +4,7 @@
 use farfield_builder::PagedFile;
 use farfield_builder::import::{Params, load_input};
 use farfield_builder::scene::{Geometry, Primitives, Scene};
+use farfield_protocol::file::FileHeader;
 use farfield_tests::scratch;
 use glam::DVec3;
 
@@ -125,14 +126,14 @@ fn page_zero_holds_whole_first_levels_and_children_point_forward() {
         file.header.nodes,
         "every node reachable"
     );
-    let page0 = &file.header.pages[0];
+    let page0 = &file.directory.entry(0).unwrap();
     assert!(
         page0.level_max >= 3,
         "page 0 holds only levels 0..={}",
         page0.level_max
     );
     assert!(
-        file.header.pages.len() > 1,
+        file.header.page_count > 1,
         "test scene should need several pages"
     );
     for n in &nodes {
@@ -174,9 +175,15 @@ fn a_flipped_bit_in_any_page_is_reported_by_inspect() {
     assert_eq!(report.json["corrupt_pages"], 0);
     assert_eq!(report.exit_code, 0);
     // How the pages are stored, counted from the file's own bytes.
-    let pages = scene.header.pages.len();
-    let header_bytes = scene.header.pages[0].offset;
-    assert_eq!(report.json["header_bytes"], header_bytes);
+    let pages = scene.header.page_count as usize;
+    // The header has one size; the root directory page follows it, and
+    // page 0 the root: the first image's bytes.
+    assert_eq!(report.json["header_bytes"], FileHeader::ENCODED_LEN);
+    let page0 = scene.directory.entry(0).unwrap();
+    assert_eq!(
+        report.json["first_image_bytes"],
+        page0.offset + u64::from(page0.length)
+    );
     let stored: u64 = file.pages.iter().map(|p| p.len() as u64 - 44).sum();
     assert_eq!(report.json["page_body_bytes_stored"], stored);
     let decoded = report.json["page_body_bytes_decoded"].as_u64().unwrap();
@@ -187,7 +194,7 @@ fn a_flipped_bit_in_any_page_is_reported_by_inspect() {
         report.json
     );
     let original = std::fs::read(&path).unwrap();
-    for (i, entry) in scene.header.pages.iter().enumerate() {
+    for (i, entry) in scene.directory.entries().map(|(i, e)| (i as usize, e)) {
         // A different bit in each page: header, records and checksum bytes.
         let byte = entry.offset as usize + (i * 7919) % entry.length as usize;
         let mut bytes = original.clone();
@@ -212,7 +219,7 @@ fn file_size_and_attribute_bits_follow_the_scene() {
     let file = island();
     assert!(file.header.attributes.color && file.header.attributes.normals);
     assert_eq!(file.header.node_bytes, 6);
-    let bytes: usize = file.header.encode().len() + file.pages.iter().map(Vec::len).sum::<usize>();
+    let bytes = file.to_bytes().len();
     let per_node = bytes as f64 / file.header.nodes as f64;
     assert!(per_node <= 6.5, "{per_node} bytes per node with color");
 }

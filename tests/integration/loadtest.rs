@@ -301,7 +301,8 @@ fn load_clients_stream_an_exported_scene_from_a_static_file_server() {
     ])
     .expect("export");
     let header = farfield_store::SceneFile::open(&dir.join("island.ff")).unwrap();
-    let pages = header.header.pages.len();
+    // The scene's pages and its directory pages.
+    let pages = header.directory.id_count() as usize;
     assert_eq!(
         std::fs::read_dir(files.join("island/pages"))
             .unwrap()

@@ -12,6 +12,7 @@ mod crowd;
 mod cubes;
 mod degenerate;
 mod demo_sessions;
+mod directory;
 mod extremes;
 mod holes;
 mod impostor_prefetch;
@@ -69,7 +70,7 @@ pub fn build(scene: Scene) -> PagedFile {
 
 /// Every page of a built file made resident, through the real page parser.
 pub fn resident(file: &PagedFile) -> Hierarchy {
-    let mut h = Hierarchy::new(file.header.clone()).expect("header");
+    let mut h = with_directory(file);
     for (i, page) in file.pages.iter().enumerate() {
         h.insert_page(i as u32, page).expect("page");
     }
@@ -78,11 +79,33 @@ pub fn resident(file: &PagedFile) -> Hierarchy {
 
 /// The file with only the pages `keep` accepts resident.
 pub fn resident_where(file: &PagedFile, keep: impl Fn(usize) -> bool) -> Hierarchy {
-    let mut h = Hierarchy::new(file.header.clone()).expect("header");
+    let mut h = with_directory(file);
     for (i, page) in file.pages.iter().enumerate().filter(|&(i, _)| keep(i)) {
         h.insert_page(i as u32, page).expect("page");
     }
     h
+}
+
+/// A client's hierarchy of `file` with its directory pages arrived (each
+/// checked, as a client checks them) and no page resident yet.
+pub fn with_directory(file: &PagedFile) -> Hierarchy {
+    let mut h = Hierarchy::new(file.header.clone()).expect("header");
+    for (n, bytes) in file.directory_pages.iter().enumerate() {
+        h.insert_page(file.header.page_count + n as u32, bytes)
+            .expect("directory page");
+    }
+    h
+}
+
+/// A client's hierarchy of a forged `file` whose directory says page
+/// `index` has checksum `checksum` (a forged page's), its directory pages
+/// arrived: the page then reaches the checks behind the checksums.
+pub fn forged(file: &PagedFile, index: usize, checksum: u32) -> Hierarchy {
+    let mut entries: Vec<_> = file.directory.entries().map(|(_, e)| e).collect();
+    entries[index].checksum = checksum;
+    let forged =
+        PagedFile::assemble(file.header.clone(), entries, file.pages.clone()).expect("forged file");
+    with_directory(&forged)
 }
 
 /// Writes a built file and opens it again, as a reader would.

@@ -9,7 +9,6 @@ use std::path::{Path, PathBuf};
 use std::time::Duration;
 
 use farfield_memory_server::{RunningServer, ServerConfig, start};
-use farfield_protocol::file::FileHeader;
 use farfield_protocol::messages::ServerMessage;
 use farfield_render::headless_or_skip;
 use std::sync::atomic::Ordering;
@@ -160,9 +159,12 @@ fn a_scene_built_into_a_store_renders_as_the_local_file_and_a_damaged_page_is_re
 
     // A copy damaged in the store, after its upload: one byte of page 1.
     let bytes = std::fs::read(&local).unwrap();
-    let header = FileHeader::decode(&bytes).unwrap();
     let page = 1u32;
-    let entry = header.pages[page as usize];
+    let entry = farfield_protocol::paged_file::read_image(&bytes)
+        .unwrap()
+        .directory()
+        .entry(page)
+        .unwrap();
     let mut damaged = bytes.clone();
     damaged[(entry.offset + u64::from(entry.length) / 2) as usize] ^= 0x5a;
     std::fs::write(store.object_file("scenes", "bad.ff"), &damaged).unwrap();
@@ -200,7 +202,7 @@ fn the_store_stopped_and_started_while_a_client_streams_then_every_page_arrives_
     };
     let bucket = store.bucket("s3://scenes", Duration::from_secs(2));
     let file = SceneFile::open(&local).unwrap();
-    let pages = file.header.pages.len() as u32;
+    let pages = file.header.page_count;
     assert!(pages > 4, "{pages} pages");
 
     let rt = runtime();
@@ -268,7 +270,7 @@ fn neighbouring_pages_come_in_one_range_request_and_are_checked_one_by_one() {
     let file = SceneFile::open(&local).unwrap();
     let run = 1..6u32;
     // One byte of page 3 damaged in the store.
-    let entry = file.header.pages[3];
+    let entry = file.directory.entry(3).unwrap();
     let stored = store.object_file("scenes", "island.ff");
     let mut bytes = std::fs::read(&stored).unwrap();
     bytes[(entry.offset + u64::from(entry.length) / 2) as usize] ^= 0x5a;

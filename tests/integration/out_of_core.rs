@@ -110,6 +110,5 @@ fn file_pages(path: &std::path::Path) -> usize {
     farfield_store::SceneFile::open(path)
         .expect("open")
         .header
-        .pages
-        .len()
+        .page_count as usize
 }

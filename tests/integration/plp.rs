@@ -387,13 +387,13 @@ fn streamed_pages_are_wanted_in_projection_order_and_within_the_budget() {
     let budget = Budget::Triangles(40);
     let target = walk(&whole, &front(), budget, Order::Solidity);
     // Only the skeleton: PLP already orders everything.
-    let mut h = Hierarchy::new(file.header.clone()).expect("header");
+    let mut h = crate::with_directory(&file);
     h.insert_page(0, &file.pages[0]).expect("page 0");
     let first = walk(&h, &front(), budget, Order::Solidity);
     assert!(first.triangles.is_empty());
     assert!(!first.wanted.is_empty());
     // The wanted cells' |c| stop at the first to reach the budget.
-    let page_of = |c: u32| h.header.page_of(1 + u64::from(c)).expect("a page") as u32;
+    let page_of = |c: u32| h.directory().page_of(1 + u64::from(c)).expect("a page");
     let mut committed = 0u64;
     let mut expected = Vec::new();
     for &c in &first.projected {
@@ -431,7 +431,7 @@ fn streamed_pages_are_wanted_in_projection_order_and_within_the_budget() {
     );
     // Moving changes the order.
     let side = camera(DVec3::new(-8.0, 8.0, 1.0), DVec3::new(8.0, 8.0, 1.0));
-    let mut h0 = Hierarchy::new(file.header.clone()).expect("header");
+    let mut h0 = crate::with_directory(&file);
     h0.insert_page(0, &file.pages[0]).expect("page 0");
     let moved: Vec<u32> = walk(&h0, &side, budget, Order::Solidity)
         .wanted
@@ -444,7 +444,7 @@ fn streamed_pages_are_wanted_in_projection_order_and_within_the_budget() {
 #[test]
 fn a_corrupt_skeleton_or_cell_page_is_refused_whole() {
     let file = build(&rows(), &small_pages());
-    let mut h = Hierarchy::new(file.header.clone()).expect("header");
+    let mut h = crate::with_directory(&file);
     let mut bad = file.pages[0].clone();
     let mid = bad.len() / 2;
     bad[mid] ^= 0x10;

@@ -13,7 +13,6 @@ use farfield_client::viewer::Viewer;
 use farfield_image::compare;
 use farfield_memory_server::{RunningServer, ServerConfig, start};
 use farfield_net::SessionOptions;
-use farfield_protocol::file::FileHeader;
 use farfield_render::{Kernel, Renderer, SplatStyle, headless_or_skip};
 use farfield_store::write_atomic;
 use farfield_tests::{scratch, shared_data};
@@ -172,7 +171,7 @@ fn the_first_image_comes_from_page_zero_and_error_never_grows() {
         1,
         "only page 0 before anything was asked for"
     );
-    let page0_nodes = u64::from(h.header.pages[0].node_count);
+    let page0_nodes = u64::from(h.directory().entry(0).unwrap().node_count);
     let style = SplatStyle {
         kernel: Kernel::Square,
         ..SplatStyle::default()
@@ -252,8 +251,7 @@ fn two_clients_at_once_and_a_stalled_reader_does_not_stall_others() {
     let pages = farfield_store::SceneFile::open(&dir.join("island.ff"))
         .unwrap()
         .header
-        .pages
-        .len() as u32;
+        .page_count;
     let stalled = rt.block_on(async move {
         let (mut socket, _) = tokio_tungstenite::connect_async(ws).await.unwrap();
         use farfield_protocol::codec::encode_control;
@@ -431,9 +429,12 @@ fn a_page_corrupt_on_the_server_is_given_up_and_the_rest_refines() {
     let (dir, _) = scenes("corrupt-on-server");
     let path = dir.join("island.ff");
     let mut bytes = std::fs::read(&path).unwrap();
-    let header = FileHeader::decode(&bytes).unwrap();
-    assert!(header.pages.len() > 2, "the scene needs pages below page 0");
-    bytes[header.pages[1].offset as usize + 40] ^= 0x10;
+    let image = farfield_protocol::paged_file::read_image(&bytes).unwrap();
+    assert!(
+        image.header.page_count > 2,
+        "the scene needs pages below page 0"
+    );
+    bytes[image.directory().entry(1).unwrap().offset as usize + 40] ^= 0x10;
     std::fs::write(&path, &bytes).unwrap();
     let rt = runtime();
     let server = serve(&rt, &dir, 0);
@@ -530,7 +531,7 @@ fn sessions_driven_as_tasks_fetch_every_page() {
                         }
                     }
                     let Some(h) = &hierarchy else { return true };
-                    let missing: Vec<PageWish> = (0..h.header.pages.len() as u32)
+                    let missing: Vec<PageWish> = (0..h.header.page_count)
                         .filter(|&p| !h.is_resident(p as usize))
                         .map(|page| PageWish {
                             page,
@@ -554,7 +555,7 @@ fn sessions_driven_as_tasks_fetch_every_page() {
         let h = hierarchy.expect("a header arrived");
         assert_eq!(
             h.resident_pages(),
-            h.header.pages.len(),
+            h.header.page_count as usize,
             "every page arrived within 30 s"
         );
     }
@@ -572,8 +573,8 @@ fn a_root_page_that_never_arrives_is_not_refined() {
     let (dir, _) = scenes("root-corrupt-on-server");
     let path = dir.join("island.ff");
     let mut bytes = std::fs::read(&path).unwrap();
-    let header = FileHeader::decode(&bytes).unwrap();
-    bytes[header.pages[0].offset as usize + 40] ^= 0x10;
+    let image = farfield_protocol::paged_file::read_image(&bytes).unwrap();
+    bytes[image.directory().entry(0).unwrap().offset as usize + 40] ^= 0x10;
     std::fs::write(&path, &bytes).unwrap();
     let rt = runtime();
     let server = serve(&rt, &dir, 0);

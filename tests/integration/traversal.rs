@@ -96,7 +96,7 @@ fn coarser_thresholds_draw_fewer_splats() {
 #[test]
 fn page_zero_alone_gives_a_cut_and_asks_for_the_next_pages() {
     let file = island();
-    let mut h = Hierarchy::new(file.header.clone()).unwrap();
+    let mut h = crate::with_directory(&file);
     let cam = camera(&h);
     let options = TraverseOptions {
         threshold_px: 1.0,
@@ -108,7 +108,7 @@ fn page_zero_alone_gives_a_cut_and_asks_for_the_next_pages() {
     assert_eq!(cut.wanted.first().map(|w| w.page), Some(0));
     h.insert_page(0, &file.pages[0]).unwrap();
     let cut = traverse(&h, &cam, &options);
-    let page0_nodes = u64::from(file.header.pages[0].node_count);
+    let page0_nodes = u64::from(file.directory.entry(0).unwrap().node_count);
     assert!(!cut.splats.is_empty());
     assert!(cut.splats.iter().all(|s| s.node < page0_nodes));
     assert!(!cut.wanted.is_empty() && cut.wanted.iter().all(|w| w.page > 0));

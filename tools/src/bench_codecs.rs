@@ -112,9 +112,9 @@ const CANDIDATES: [Candidate; 8] = [
 fn bodies(file: &Path) -> anyhow::Result<(SceneFile, Vec<Body>)> {
     let scene = SceneFile::open(file)?;
     let header = scene.header.clone();
-    let mut out = Vec::with_capacity(header.pages.len());
+    let mut out = Vec::with_capacity(header.page_count as usize);
     let mut bytes = Vec::new();
-    for index in 0..header.pages.len() {
+    for index in 0..header.page_count as usize {
         bytes.clear();
         scene.read_page_into(index, &mut bytes)?;
         let page = Page::parse_with_payload(&bytes, index as u32, header.node_bytes)?;
@@ -213,7 +213,7 @@ pub fn codecs(files: &[PathBuf], repeats: usize) -> anyhow::Result<Measured> {
 /// `benches/codec_wasm/run` times in wasm.
 fn check_rate(scene: &SceneFile, repeats: usize) -> anyhow::Result<f64> {
     let mut stored = Vec::new();
-    for index in 0..scene.header.pages.len() {
+    for index in 0..scene.header.page_count as usize {
         let mut bytes = Vec::new();
         scene.read_page_into(index, &mut bytes)?;
         stored.push(bytes);
@@ -223,7 +223,7 @@ fn check_rate(scene: &SceneFile, repeats: usize) -> anyhow::Result<f64> {
         let started = Instant::now();
         let mut decoded = 0;
         for (index, bytes) in stored.iter().enumerate() {
-            let page = check_page(&scene.header, index as u32, bytes)?;
+            let page = check_page(&scene.header, &scene.directory, index as u32, bytes)?;
             decoded += page.records().len() + page.payload().len();
         }
         rates.push(decoded as f64 / started.elapsed().as_secs_f64().max(1e-9));
@@ -236,9 +236,8 @@ fn check_rate(scene: &SceneFile, repeats: usize) -> anyhow::Result<f64> {
 fn pages_stored(scene: &SceneFile) -> usize {
     use farfield_protocol::page::{PAGE_CHECKSUM_BYTES, PAGE_HEADER_BYTES};
     scene
-        .header
-        .pages
-        .iter()
-        .map(|p| (p.length as usize).saturating_sub(PAGE_HEADER_BYTES + PAGE_CHECKSUM_BYTES))
+        .directory
+        .entries()
+        .map(|(_, p)| (p.length as usize).saturating_sub(PAGE_HEADER_BYTES + PAGE_CHECKSUM_BYTES))
         .sum()
 }

@@ -144,8 +144,7 @@ pub fn run_bench(job: &BenchStreamJob) -> anyhow::Result<BenchStreamReport> {
     let tcp = rt.block_on(tcp_loopback_mb_per_s(job.seconds.min(3.0)))?;
     let pages = farfield_store::SceneFile::open(&job.scene)?
         .header
-        .pages
-        .len() as u32;
+        .page_count;
     let mut throughput = Vec::new();
     for &clients in &job.clients {
         throughput.push(load(&rt, &url, &name, pages, clients, job.seconds)?);

@@ -129,7 +129,7 @@ pub fn traverse_bsp_into(h: &Hierarchy, camera: &Camera, record_pages: bool, cut
     };
     let view = camera.view(1e-9);
     let origin = h.header.root_center;
-    let mut pages = PageTracker::new(h.header.pages.len(), record_pages);
+    let mut pages = PageTracker::new(record_pages);
     pages.touch(0);
     let mut stack = vec![0u32];
     while let Some(n) = stack.pop() {

@@ -14,6 +14,7 @@ use glam::DVec3;
 
 use farfield_protocol::camera::{Camera, Containment, View};
 use farfield_protocol::cube_codec::{Face, Rgba8};
+use farfield_protocol::directory::Locate;
 use farfield_protocol::file::HierarchyKind;
 use farfield_protocol::hierarchy::{Hierarchy, ResidentPage};
 
@@ -140,7 +141,7 @@ pub fn traverse_cubes_into(
     let view = camera.view(half * options.near_fraction);
     let cluster = u32::from(h.header.cluster.max(1));
     let cluster_levels = cluster.trailing_zeros();
-    let mut pages = PageTracker::new(h.header.pages.len(), options.record_pages);
+    let mut pages = PageTracker::new(options.record_pages);
     let mut stack = vec![Item {
         page: 0,
         local: 0,
@@ -204,14 +205,19 @@ pub fn traverse_cubes_into(
         }
         let first = Hierarchy::first_child(page, item.local as usize);
         let count = rec.child_count() as usize;
-        let resident = h.header.page_of(first).and_then(|i| {
-            let p = h.page(i)?;
-            Hierarchy::group_fits(p, first, count).then_some((i, p))
-        });
+        let located = h.directory().locate(first);
+        let resident = match located {
+            Locate::Page(i) => h
+                .page(i as usize)
+                .filter(|p| Hierarchy::group_fits(p, first, count))
+                .map(|p| (i as usize, p)),
+            Locate::Missing(_) | Locate::Outside => None,
+        };
         let Some((child_page_index, child_page)) = resident else {
             draw_cube(h, page, item, &view, options, cluster, cluster_levels, cut);
-            if let Some(i) = h.header.page_of(first) {
-                pages.want(i as u32, size, view.distance_from_center(center));
+            // The children's page, or the directory page that places it.
+            if let Locate::Page(i) | Locate::Missing(i) = located {
+                pages.want(i, size, view.distance_from_center(center));
             }
             continue;
         };

@@ -31,6 +31,7 @@ use std::collections::BinaryHeap;
 use glam::DVec3;
 
 use farfield_protocol::camera::{Camera, View};
+use farfield_protocol::directory::Locate;
 use farfield_protocol::file::HierarchyKind;
 use farfield_protocol::hierarchy::{Hierarchy, PlpPage};
 use farfield_protocol::plp_codec::{CellPage, NO_NEIGHBOUR, Skeleton, face_corners};
@@ -234,7 +235,7 @@ pub fn traverse_plp_into(
     state.sparse.clear();
     state.projected_stamp.resize(cells, 0);
     state.generation.resize(cells, 0);
-    let mut pages = PageTracker::new(h.header.pages.len(), options.record_pages);
+    let mut pages = PageTracker::new(options.record_pages);
     pages.touch(0);
     let mut walk = Walk {
         h,
@@ -439,11 +440,13 @@ impl<'a> Walk<'a> {
             return;
         }
         self.pending += size;
-        if let Some(page) = self.h.header.page_of(1 + u64::from(c)) {
+        // The cell's page, or the directory page that places it.
+        if let Locate::Page(page) | Locate::Missing(page) =
+            self.h.directory().locate(1 + u64::from(c))
+        {
             // Earlier in the order is more urgent.
             self.requests += 1;
-            self.pages
-                .want(page as u32, 1e9 / self.requests as f64, 0.0);
+            self.pages.want(page, 1e9 / self.requests as f64, 0.0);
         }
     }
 
@@ -451,7 +454,7 @@ impl<'a> Walk<'a> {
     fn cell_page(&mut self, c: u32) -> Option<(u32, &'a CellPage, usize)> {
         let h: &'a Hierarchy = self.h;
         let node = 1 + u64::from(c);
-        let index = h.header.page_of(node)?;
+        let index = h.directory().page_of(node)? as usize;
         let page = h.page(index)?;
         let Some(PlpPage::Cells(cells)) = page.plp() else {
             return None;

@@ -10,6 +10,7 @@
 use glam::{DVec3, Vec3};
 
 use farfield_protocol::camera::{Camera, Containment, View};
+use farfield_protocol::directory::Locate;
 use farfield_protocol::hierarchy::Hierarchy;
 use farfield_protocol::sphere_codec::{self, NodeRecord};
 
@@ -99,7 +100,7 @@ pub fn traverse_into(h: &Hierarchy, camera: &Camera, options: &TraverseOptions, 
     if h.header.kind != farfield_protocol::file::HierarchyKind::Spheres {
         return;
     }
-    let mut pages = PageTracker::new(h.header.pages.len(), options.record_pages);
+    let mut pages = PageTracker::new(options.record_pages);
     // Table lookups hoisted out of the loop (each accessor checks a OnceLock).
     let spheres = sphere_codec::sphere_table();
     let normals = sphere_codec::normal_table();
@@ -161,8 +162,8 @@ pub fn traverse_into(h: &Hierarchy, camera: &Camera, options: &TraverseOptions, 
         let mut draw = children == 0 || size <= threshold;
         if !draw {
             let first = Hierarchy::first_child(page, item.local as usize);
-            match h.header.page_of(first) {
-                Some(child_page_index) => match h.page(child_page_index) {
+            match h.directory().locate(first) {
+                Locate::Page(child_page_index) => match h.page(child_page_index as usize) {
                     Some(child_page) if Hierarchy::group_fits(child_page, first, children) => {
                         for c in 0..children as u64 {
                             let index = first + c;
@@ -170,7 +171,7 @@ pub fn traverse_into(h: &Hierarchy, camera: &Camera, options: &TraverseOptions, 
                             let child = h.record(child_page, local);
                             let (center, radius) = decode(item.center, item.radius, child.sphere);
                             stack.push(Item {
-                                page: child_page_index as u32,
+                                page: child_page_index,
                                 local: local as u32,
                                 index,
                                 center,
@@ -183,10 +184,15 @@ pub fn traverse_into(h: &Hierarchy, camera: &Camera, options: &TraverseOptions, 
                     None => {
                         draw = true;
                         let off_center = view.distance_from_center(item.center);
-                        pages.want(child_page_index as u32, size, off_center);
+                        pages.want(child_page_index, size, off_center);
                     }
                 },
-                None => draw = true,
+                // The directory page that places the children first.
+                Locate::Missing(directory) => {
+                    draw = true;
+                    pages.want(directory, size, view.distance_from_center(item.center));
+                }
+                Locate::Outside => draw = true,
             }
         }
         if draw {

@@ -19,27 +19,25 @@ fn wish(page: u32, priority: f64) -> PageWish {
 /// kinds' traversals report besides what they draw.
 #[derive(Debug)]
 pub struct PageTracker {
-    /// Per page, whether the traversal read it (empty when not recorded).
-    touched: Vec<bool>,
+    /// The pages the traversal read, when recorded: a set, not a flag per
+    /// page, so a header's page count (which a server chooses) is never
+    /// allocated for.
+    touched: Option<std::collections::BTreeSet<u32>>,
     /// Wanted page -> its highest priority.
     wanted: std::collections::HashMap<u32, f64>,
 }
 
 impl PageTracker {
-    pub fn new(pages: usize, record_touched: bool) -> Self {
+    pub fn new(record_touched: bool) -> Self {
         Self {
-            touched: if record_touched {
-                vec![false; pages]
-            } else {
-                Vec::new()
-            },
+            touched: record_touched.then(Default::default),
             wanted: std::collections::HashMap::new(),
         }
     }
 
     pub fn touch(&mut self, page: u32) {
-        if let Some(t) = self.touched.get_mut(page as usize) {
-            *t = true;
+        if let Some(t) = &mut self.touched {
+            t.insert(page);
         }
     }
 
@@ -53,7 +51,7 @@ impl PageTracker {
 
     /// Writes the touched pages and the wishes, most urgent first.
     pub fn finish(self, touched: &mut Vec<u32>, wanted: &mut Vec<PageWish>) {
-        touched.extend((0..self.touched.len() as u32).filter(|&p| self.touched[p as usize]));
+        touched.extend(self.touched.into_iter().flatten());
         // Ordered in f64, before the priorities are rounded to the wire's
         // f32, so that close priorities keep their order.
         let mut wishes: Vec<(u32, f64)> = self.wanted.into_iter().collect();

@@ -18,7 +18,9 @@ fn header() -> FileHeader {
         bounds_max: DVec3::new(10.5, 20.5, 30.5),
         root_center: DVec3::new(10.0, 20.0, 30.0),
         root_radius: 0.9,
-        pages: Vec::new(),
+        page_count: 1,
+        directory_pages: 1,
+        root_directory: Default::default(),
     }
 }
 

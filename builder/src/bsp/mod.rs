@@ -185,7 +185,7 @@ pub fn build_bsp(scene: &Scene, options: &BspOptions) -> Result<(PagedFile, BspS
         stored_per_placement: ratio(laid.stored_placements, collected.placements.len() as u64),
         pages: laid.file.pages.len(),
         skeleton_bytes: laid.file.pages.first().map_or(0, |p| p.len() as u64),
-        file_bytes: laid.file.header.file_len(),
+        file_bytes: laid.file.directory.file_len(),
         expanded_bytes: laid.scene_triangles * farfield_protocol::bsp_codec::TRIANGLE_BYTES as u64,
         options: *options,
         seconds_collect,

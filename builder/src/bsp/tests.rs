@@ -63,10 +63,7 @@ fn island(k: u32, spacing: f64) -> Scene {
 }
 
 fn hierarchy(file: &PagedFile) -> Hierarchy {
-    let mut bytes = file.header.encode();
-    for p in &file.pages {
-        bytes.extend_from_slice(p);
-    }
+    let bytes = file.to_bytes();
     read_image(&bytes).expect("the file reads back")
 }
 

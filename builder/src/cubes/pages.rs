@@ -176,6 +176,8 @@ pub fn lay_out(root: &Cell, info: LayoutInfo) -> Result<PagedFile, FormatError> 
         bounds_max: info.bounds_max,
         root_center: info.root_center,
         root_radius: info.root_half_edge,
-        pages: Vec::new(),
+        page_count: 0,
+        directory_pages: 0,
+        root_directory: Default::default(),
     })
 }

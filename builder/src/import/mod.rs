@@ -284,10 +284,7 @@ mod tests {
     use farfield_protocol::paged_file::read_image;
 
     fn read_back(file: &PagedFile) {
-        let mut bytes = file.header.encode();
-        for page in &file.pages {
-            bytes.extend_from_slice(page);
-        }
+        let bytes = file.to_bytes();
         read_image(&bytes).expect("the built file reads back");
     }
 

@@ -231,7 +231,7 @@ pub fn build_plp(scene: &Scene, options: &PlpOptions) -> Result<(PagedFile, PlpS
         stored_per_triangle: laid.stored_triangles as f64 / n,
         pages: laid.file.pages.len(),
         skeleton_bytes: laid.file.pages.first().map_or(0, |p| p.len() as u64),
-        file_bytes: laid.file.header.file_len(),
+        file_bytes: laid.file.directory.file_len(),
         options: *options,
         seconds_octree,
         seconds_delaunay,

@@ -90,7 +90,9 @@ pub fn lay_out(
         bounds_max: input.bounds_max,
         root_center,
         root_radius,
-        pages: Vec::new(),
+        page_count: 0,
+        directory_pages: 0,
+        root_directory: Default::default(),
     })?;
     file.leaf_sources = leaf_sources;
     Ok(file)

@@ -551,11 +551,7 @@ fn pdb_seeds(out: &mut Out, data: &Path) {
 
 /// A built file's bytes as stored: header, then pages.
 fn file_bytes(file: &PagedFile) -> Vec<u8> {
-    let mut bytes = file.header.encode();
-    for page in &file.pages {
-        bytes.extend_from_slice(page);
-    }
-    bytes
+    file.to_bytes()
 }
 
 fn file_seeds(out: &mut Out, name: &str, file: &PagedFile) {
@@ -574,7 +570,8 @@ fn file_seeds(out: &mut Out, name: &str, file: &PagedFile) {
         | u8::from(h.attributes.color) << 1
         | u8::from(h.attributes.normals) << 2
         | u8::from(h.attributes.leaf_geometry) << 3;
-    for (i, (page, entry)) in file.pages.iter().zip(&h.pages).enumerate().take(4) {
+    let entries: Vec<_> = file.directory.entries().map(|(_, e)| e).collect();
+    for (i, (page, entry)) in file.pages.iter().zip(&entries).enumerate().take(4) {
         let after = h.nodes - entry.first_node - u64::from(entry.node_count);
         let mut seed = vec![flags, h.cluster];
         seed.extend_from_slice(&(after as u32).to_le_bytes());

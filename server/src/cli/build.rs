@@ -248,7 +248,9 @@ pub fn run(args: &BuildArgs) -> anyhow::Result<Report> {
     progress.set_message(format!("writing {}", args.out.display()));
     let mut bytes = match &made {
         Made::InMemory(file) => write_atomic(&local, file)?,
-        Made::Spilled(f) => write_atomic_parts(&local, &f.file.header.encode(), &f.file.body)?,
+        Made::Spilled(f) => {
+            write_atomic_parts(&local, &f.file.head(), &f.file.body, &f.file.tail())?
+        }
     };
     let h = made.header().clone();
     // The spilled pages and their temporary folder go now.
@@ -283,7 +285,7 @@ pub fn run(args: &BuildArgs) -> anyhow::Result<Report> {
         counted(h.nodes, "node", "nodes"),
         counted(h.leaves, "leaf", "leaves"),
         counted(h.levels, "level", "levels"),
-        counted(h.pages.len() as u64, "page", "pages"),
+        counted(u64::from(h.page_count), "page", "pages"),
         bytes,
         bytes as f64 / nodes as f64,
         seconds

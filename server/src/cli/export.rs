@@ -1,8 +1,9 @@
 //! `farfield-server export`: a scene as plain files for a static file
 //! server (nginx, say), laid out as the load test's `--static` mode asks
-//! for them: `OUT/NAME/header` (the header as stored, directory and
-//! checksum included) and `OUT/NAME/pages/N` (page N as stored). Every
-//! page is verified on the way out, so a corrupt file exports nothing.
+//! for them: `OUT/NAME/header` (the header as stored, its checksum
+//! included) and `OUT/NAME/pages/N` (page id N as stored: the scene's
+//! pages, then its directory pages). Every page is verified on the way
+//! out, so a corrupt file exports nothing.
 
 use anyhow::Context;
 use farfield_store::{PageSource, SceneFile};
@@ -31,7 +32,8 @@ pub fn run(args: &ExportArgs) -> anyhow::Result<Report> {
         .with_context(|| format!("making {}", pages_dir.display()))?;
     let mut bytes = file.header_bytes().len() as u64;
     let mut page = Vec::new();
-    let count = file.header().pages.len() as u32;
+    // The scene's pages, then the directory's (ids after them).
+    let count = file.directory().id_count();
     for index in 0..count {
         page.clear();
         file.read_page(index, &mut page)

@@ -10,7 +10,14 @@ pub fn run(args: &InspectArgs) -> anyhow::Result<Report> {
     let h = &file.header;
     let survey = file.survey_pages();
     let corrupt = &survey.corrupt;
-    let first_page_nodes = h.pages.first().map_or(0, |p| p.node_count);
+    let d = &file.directory;
+    let first = d.entry(0);
+    let first_page_nodes = first.map_or(0, |p| p.node_count);
+    // The first image's bytes: the header, the root directory page and
+    // page 0, whatever the scene's size.
+    let first_read = file.header_bytes().len() as u64
+        + d.extent(d.root_id()).map_or(0, |e| u64::from(e.length))
+        + first.map_or(0, |e| u64::from(e.length));
     let json = json!({
         "file": args.file,
         "kind": h.kind.name(),
@@ -22,17 +29,20 @@ pub fn run(args: &InspectArgs) -> anyhow::Result<Report> {
         "has_color": h.attributes.color,
         "has_normals": h.attributes.normals,
         "node_bytes": h.node_bytes,
-        "pages": h.pages.len(),
-        // What a client reads before any page: the header, directory
-        // included.
+        "pages": h.page_count,
+        "directory_pages": h.directory_pages,
+        "directory_bytes": d.directory_extents().map(|(_, e)| u64::from(e.length)).sum::<u64>(),
+        // What a client reads before any page: the header, the same for
+        // every scene.
         "header_bytes": file.header_bytes().len(),
+        "first_image_bytes": first_read,
         "compressed_pages": survey.compressed,
         "page_body_bytes_stored": survey.stored_bytes,
         "page_body_bytes_decoded": survey.decoded_bytes,
         "bytes_per_input": file.len() as f64 / h.input_vertices.max(1) as f64,
-        "page_bytes_max": h.pages.iter().map(|p| p.length).max().unwrap_or(0),
+        "page_bytes_max": d.entries().map(|(_, p)| p.length).max().unwrap_or(0),
         "first_page_nodes": first_page_nodes,
-        "first_page_levels": h.pages.first().map_or(0, |p| u32::from(p.level_max) + 1),
+        "first_page_levels": first.map_or(0, |p| u32::from(p.level_max) + 1),
         "file_bytes": file.len(),
         "bytes_per_node": file.len() as f64 / h.nodes as f64,
         "bounds_min": h.bounds_min.to_array(),
@@ -51,7 +61,7 @@ pub fn run(args: &InspectArgs) -> anyhow::Result<Report> {
         counted(h.levels, "level", "levels"),
         h.attributes.color,
         h.attributes.normals,
-        counted(h.pages.len() as u64, "page", "pages"),
+        counted(u64::from(h.page_count), "page", "pages"),
         file.len(),
         file.len() as f64 / h.nodes as f64
     );
@@ -59,7 +69,7 @@ pub fn run(args: &InspectArgs) -> anyhow::Result<Report> {
         text.push_str(&format!(
             "; {} of {} compressed, bodies {} bytes stored for {} decoded ({:.2}x)",
             survey.compressed,
-            counted(h.pages.len() as u64, "page", "pages"),
+            counted(u64::from(h.page_count), "page", "pages"),
             survey.stored_bytes,
             survey.decoded_bytes,
             survey.decoded_bytes as f64 / survey.stored_bytes.max(1) as f64

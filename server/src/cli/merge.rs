@@ -38,7 +38,12 @@ pub fn run(args: &MergeArgs) -> anyhow::Result<Report> {
     let (finished, stats) = out_of_core::merge(&args.parts, &options, &tmp, &Bar(&progress))
         .with_context(|| format!("merging {} parts", args.parts.len()))?;
     let h = finished.file.header.clone();
-    let mut bytes = write_atomic_parts(&local, &h.encode(), &finished.file.body)?;
+    let mut bytes = write_atomic_parts(
+        &local,
+        &finished.file.head(),
+        &finished.file.body,
+        &finished.file.tail(),
+    )?;
     drop(finished);
     if let Some(target) = &store {
         bytes = publish_and_remove(&local, target)?;
@@ -52,7 +57,7 @@ pub fn run(args: &MergeArgs) -> anyhow::Result<Report> {
         counted(h.nodes, "node", "nodes"),
         counted(h.leaves, "leaf", "leaves"),
         counted(h.levels, "level", "levels"),
-        counted(h.pages.len() as u64, "page", "pages"),
+        counted(u64::from(h.page_count), "page", "pages"),
     );
     Ok(Report {
         json: json!({

@@ -73,11 +73,7 @@ async fn until_retired(c: &mut Client, file: &PagedFile) -> (String, Option<(u16
 
 /// A file's bytes as stored.
 fn file_bytes(file: &PagedFile) -> Vec<u8> {
-    let mut bytes = file.header.encode();
-    for page in &file.pages {
-        bytes.extend_from_slice(page);
-    }
-    bytes
+    file.to_bytes()
 }
 
 fn all_pages(file: &PagedFile) -> Vec<(u32, f32)> {
@@ -178,7 +174,7 @@ async fn a_scene_file_truncated_while_served_is_taken_out_of_service() {
     let file = island();
     let n = file.pages.len();
     assert!(n >= 6, "{n} pages");
-    let cut = file.header.pages[n * 3 / 4].offset + 1;
+    let cut = file.directory.entry((n * 3 / 4) as u32).unwrap().offset + 1;
     std::fs::OpenOptions::new()
         .write(true)
         .open(dir.join("island.ff"))

@@ -18,11 +18,9 @@ use std::time::Duration;
 
 use farfield_builder::import::{Params, load_input};
 use farfield_net::stream_url;
-use farfield_protocol::codec::{MAX_CONTROL_BYTES, encode_control, encode_page_frame};
+use farfield_protocol::codec::{encode_control, encode_page_frame};
 use farfield_protocol::file::FileHeader;
-use farfield_protocol::messages::{
-    ClientMessage, HEADER_PART_BYTES, PROTOCOL_VERSION, PageWish, ServerMessage,
-};
+use farfield_protocol::messages::{ClientMessage, PROTOCOL_VERSION, PageWish, ServerMessage};
 use farfield_store::write_atomic;
 use farfield_tests::scratch;
 use futures_util::SinkExt;
@@ -59,7 +57,7 @@ async fn http_lists_scenes_health_metrics_and_404s() {
     let (status, body) = http_get(addr, "/scenes/tree").await;
     assert_eq!(status, 200);
     let one: serde_json::Value = serde_json::from_str(&body).expect("JSON object");
-    assert_eq!(one["pages"], tree().header.pages.len());
+    assert_eq!(one["pages"], (tree().header.page_count as usize));
     assert_eq!(one["attributes"]["color"], tree().header.attributes.color);
 
     for path in ["/scenes/nope", "/scenes/nope/stream", "/nowhere"] {
@@ -94,13 +92,17 @@ async fn pages_arrive_in_priority_order_with_the_stored_bytes() {
     let dir = scenes_dir("serve-order");
     let server = serve(&dir).await;
     let file = island();
-    let n = file.header.pages.len() as u32;
+    let n = file.header.page_count;
     assert!(n >= 8, "test scene needs pages, has {n}");
 
     let (mut c, header, page0) = Client::open(server.local_addr(), "island", 16 << 20, false).await;
-    let header_len = FileHeader::encoded_len(file.header.pages.len());
+    let header_len = FileHeader::ENCODED_LEN;
     let on_disk = std::fs::read(dir.join("island.ff")).expect("read file");
     assert_eq!(header, on_disk[..header_len], "header bytes as stored");
+    assert_eq!(
+        c.root_directory, file.directory_pages[0],
+        "root directory page as stored"
+    );
     assert_eq!(FileHeader::decode(&header).expect("decodes"), file.header);
     assert_eq!(page0, file.pages[0]);
 
@@ -141,7 +143,8 @@ async fn pages_arrive_in_priority_order_with_the_stored_bytes() {
     assert!(c.pages_until_quiet().await.is_empty());
 
     let m = server.metrics();
-    assert_eq!(m.pages_served, u64::from(n) + 1);
+    // Every page, page 3 again, and the root directory page.
+    assert_eq!(m.pages_served, u64::from(n) + 2);
     assert!(m.latency_count >= u64::from(n));
     assert_eq!(m.queue_depth, 0);
     assert!(m.cache_misses > 0);
@@ -153,7 +156,7 @@ async fn a_client_that_never_acknowledges_gets_at_most_its_window() {
     let dir = scenes_dir("serve-window");
     let server = serve(&dir).await;
     let file = island();
-    let n = file.header.pages.len() as u32;
+    let n = file.header.page_count;
     let biggest = file.pages.iter().map(|p| p.len()).max().unwrap() as u64;
     // Asking for 1 byte gets the smallest window the server allows.
     let (mut c, _, page0) = Client::open(server.local_addr(), "island", 1, false).await;
@@ -181,7 +184,7 @@ async fn a_client_that_never_acknowledges_gets_at_most_its_window() {
 async fn a_cancelled_page_never_arrives() {
     let dir = scenes_dir("serve-cancel");
     let server = serve(&dir).await;
-    let n = island().header.pages.len() as u32;
+    let n = island().header.page_count;
     let (mut c, _, page0) = Client::open(server.local_addr(), "island", 1, false).await;
     // Page n-1 has the lowest priority, so a full window cannot hold it yet.
     let wishes: Vec<(u32, f32)> = (1..n).map(|p| (p, (n - p) as f32)).collect();
@@ -229,7 +232,7 @@ async fn a_client_that_stops_reading_still_has_its_cancels_read_and_stalls_no_on
     let server = serve(&dir).await;
     let addr = server.local_addr();
     let file = tree();
-    let n = file.header.pages.len() as u32;
+    let n = file.header.page_count;
 
     let socket = tokio::net::TcpSocket::new_v4().expect("socket");
     socket.set_recv_buffer_size(4096).expect("small buffer");
@@ -311,13 +314,12 @@ async fn another_protocol_version_gets_a_fatal_error_naming_both() {
     server.shutdown().await.expect("shutdown");
 }
 
-/// A scene with so many pages that its header (40 bytes a page) is larger
-/// than any control message may be still opens: the header travels in raw
-/// frames, like pages, of at most `HEADER_PART_BYTES` each (so no
-/// connection's write buffer grows to the whole directory).
+/// A scene of many pages (its directory in several directory pages)
+/// starts with the same small header as any other: one frame, the root
+/// directory page, page 0.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
-async fn a_header_larger_than_a_control_message_still_arrives_whole() {
-    let dir = scratch("serve-huge-header");
+async fn a_scene_of_many_pages_starts_with_the_same_small_header() {
+    let dir = scratch("serve-many-pages");
     let mut params = Params::default();
     params.set("size", 64);
     params.set("trees", 2);
@@ -327,13 +329,14 @@ async fn a_header_larger_than_a_control_message_still_arrives_whole() {
         ..Default::default()
     };
     let (file, _) = farfield_builder::build_spheres(scene, &options).expect("build");
-    assert!(FileHeader::encoded_len(file.header.pages.len()) > MAX_CONTROL_BYTES);
+    assert!(file.header.directory_pages > 1, "{:?}", file.header);
     write_atomic(&dir.join("many.ff"), &file).expect("write");
     let server = serve(&dir).await;
     let (c, header, page0) = Client::open(server.local_addr(), "many", 1 << 20, false).await;
     assert_eq!(header, file.header.encode());
-    assert_eq!(c.header_frames, header.len().div_ceil(HEADER_PART_BYTES));
-    assert!(c.header_frames > 1, "{} bytes in one frame", header.len());
+    assert_eq!(header.len(), FileHeader::ENCODED_LEN);
+    assert_eq!(c.header_frames, 1);
+    assert_eq!(c.root_directory, file.directory_pages[0]);
     assert_eq!(page0, file.pages[0]);
     server.shutdown().await.expect("shutdown");
 }
@@ -433,9 +436,9 @@ async fn pushes_arrive_only_when_allowed_and_are_counted() {
 
     // Children of page 0 (the pages holding the breadth-first range from
     // its first child to page 1's) are pushed once it is sent, unasked.
-    let h = &island().header;
-    let first = h.page_of(h.pages[0].first_child).unwrap().max(1) as u32;
-    let last = h.page_of(h.pages[1].first_child - 1).unwrap() as u32;
+    let d = &island().directory;
+    let first = d.page_of(d.entry(0).unwrap().first_child).unwrap().max(1);
+    let last = d.page_of(d.entry(1).unwrap().first_child - 1).unwrap();
     let children: HashSet<u32> = (first..=last).collect();
     assert!(!children.is_empty());
     let (mut c, _, _) = Client::open(addr, "island", 16 << 20, true).await;
@@ -467,7 +470,7 @@ async fn a_corrupt_page_is_reported_and_never_sent() {
     let path = dir.join("island.ff");
     write_atomic(&path, island()).expect("write");
     let mut bytes = std::fs::read(&path).expect("read");
-    let entry = &island().header.pages[2];
+    let entry = &island().directory.entry(2).unwrap();
     bytes[entry.offset as usize + 40] ^= 0x10;
     std::fs::write(&path, &bytes).expect("write corrupt copy");
     let server = serve(&dir).await;
@@ -518,7 +521,7 @@ async fn a_page_edited_with_its_checksum_recomputed_is_refused() {
     let modified = std::fs::metadata(&path)
         .and_then(|m| m.modified())
         .expect("mtime");
-    let entry = island().header.pages[2];
+    let entry = island().directory.entry(2).unwrap();
     let (start, end) = (
         entry.offset as usize,
         (entry.offset + u64::from(entry.length)) as usize,

@@ -128,6 +128,8 @@ pub(crate) struct Client {
     pub(crate) ws: WebSocketStream<MaybeTlsStream<TcpStream>>,
     /// How many frames the header came in ([`Client::open`]).
     pub(crate) header_frames: usize,
+    /// The root directory page, which comes before page 0.
+    pub(crate) root_directory: Vec<u8>,
 }
 
 impl Client {
@@ -145,6 +147,7 @@ impl Client {
         Self {
             ws,
             header_frames: 0,
+            root_directory: Vec::new(),
         }
     }
 
@@ -184,6 +187,13 @@ impl Client {
                 }
                 other => panic!("expected the header, got {other:?}"),
             }
+        }
+        // The root directory page (numbered after the scene's pages), then
+        // page 0: with the header, the first image.
+        let pages = FileHeader::decode(&header).expect("header").page_count;
+        match c.recv().await {
+            In::Page(root, bytes) if root == pages => c.root_directory = bytes,
+            other => panic!("expected the root directory page {pages}, got {other:?}"),
         }
         let page0 = match c.recv().await {
             In::Page(0, bytes) => bytes,

@@ -142,7 +142,8 @@ fn traversal_frame(
     let touched_bytes = viewer.hierarchy().map_or(0, |h| {
         cut.touched_pages()
             .iter()
-            .map(|&p| u64::from(h.header.pages[p as usize].length))
+            .filter_map(|&p| h.directory().extent(p))
+            .map(|e| u64::from(e.length))
             .sum()
     });
     Ok(ModeFrame {

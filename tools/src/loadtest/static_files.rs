@@ -31,6 +31,7 @@ use farfield_net::transport::{Closing, TransportEvent};
 use farfield_protocol::codec::{
     decode_control, encode_control, encode_header_frame, encode_page_frame,
 };
+use farfield_protocol::file::FileHeader;
 use farfield_protocol::messages::{ClientMessage, PROTOCOL_VERSION, ServerMessage};
 
 /// Connections (and so requests in flight) per client.
@@ -114,6 +115,9 @@ pub async fn drive_static<E>(
     let mut open = false;
     // The header's GET is under way: pages wait for it.
     let mut header_pending = false;
+    // The root directory page's id, once the header said it: page 0 is
+    // asked for when it arrived (a client cannot check page 0 before).
+    let mut root: Option<u32> = None;
     // Counts connections, as the session sees them.
     let mut generation = 0u64;
     let mut lanes: Vec<Lane> = (0..LANES).map(|_| None).collect();
@@ -176,12 +180,21 @@ pub async fn drive_static<E>(
                 tries.remove(&file);
                 let frame = match file {
                     File::Header => {
-                        // Page 0 after the header, as the memory server
-                        // sends them: a page cannot be read before it.
-                        wanted.insert(File::Page(0), f32::MAX);
+                        // The root directory page, then page 0, after the
+                        // header, as the memory server sends them: a page
+                        // cannot be checked before what places it.
+                        root = FileHeader::decode(&bytes).ok().map(|h| h.page_count);
+                        if let Some(root) = root {
+                            wanted.insert(File::Page(root), f32::MAX);
+                        }
                         encode_header_frame(&bytes)
                     }
-                    File::Page(_) => encode_page_frame(&bytes),
+                    File::Page(page) => {
+                        if Some(page) == root {
+                            wanted.insert(File::Page(0), f32::MAX);
+                        }
+                        encode_page_frame(&bytes)
+                    }
                 };
                 wire.push(TransportEvent::Frame(frame.into()));
             }

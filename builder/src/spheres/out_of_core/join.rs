@@ -170,7 +170,9 @@ pub(crate) fn join(
             bounds_max: bounds.1,
             root_center,
             root_radius,
-            pages: Vec::new(),
+            page_count: 0,
+            directory_pages: 0,
+            root_directory: Default::default(),
         })
         .map_err(|e| match e {
             SpillError::Format(e) => BuildError::Format(e),

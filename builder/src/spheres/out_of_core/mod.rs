@@ -314,7 +314,11 @@ impl Job {
         checkpoint("spread");
         let sized = phases::size(&spread, &counted, temp.path(), progress)?;
         let (file, joined) = join::join(sized, counted.layout, options, &temp, true, progress)?;
-        let build = joined.stats(file.header.pages.len(), counted.layout, counted.seconds);
+        let build = joined.stats(
+            file.header.page_count as usize,
+            counted.layout,
+            counted.seconds,
+        );
         Ok((
             Finished { file, _temp: temp },
             OutOfCoreStats {

@@ -323,7 +323,7 @@ pub fn merge(
         seconds,
     };
     let (file, joined) = join::join(sized, layout, options, &temp, false, progress)?;
-    let build = joined.stats(file.header.pages.len(), layout, 0.0);
+    let build = joined.stats(file.header.page_count as usize, layout, 0.0);
     Ok((
         Finished { file, _temp: temp },
         OutOfCoreStats {

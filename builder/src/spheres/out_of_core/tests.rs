@@ -52,11 +52,7 @@ fn both_builds(g: Geometry, tmp: &std::path::Path) -> (PagedFile, PagedFile, Out
 }
 
 fn bytes(file: &PagedFile) -> Vec<u8> {
-    let mut out = file.header.encode();
-    for p in &file.pages {
-        out.extend_from_slice(p);
-    }
-    out
+    file.to_bytes()
 }
 
 fn is_empty(dir: &std::path::Path) -> bool {

@@ -284,7 +284,7 @@ impl Planner {
             view: camera.view(1e-9),
             epsilon: epsilon_angle(options.epsilon_px, camera.fov_y_deg, camera.height),
             options,
-            pages: PageTracker::new(h.header.pages.len(), record_pages),
+            pages: PageTracker::new(record_pages),
             made: 0,
         };
         walk.pages.touch(0);
@@ -328,7 +328,7 @@ impl Planner {
             atlas_side: options.atlas_side,
             nodes: s.nodes.len(),
             root_center: h.header.root_center,
-            skeleton: h.header.pages.first().map_or(0, |p| p.checksum),
+            skeleton: h.directory().entry(0).map_or(0, |p| p.checksum),
         };
         if self.key != Some(key) {
             self.key = Some(key);
