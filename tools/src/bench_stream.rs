@@ -68,6 +68,10 @@ pub struct BenchStreamReport {
     pub adapter: String,
     pub time_to_first_image_ms: Vec<f64>,
     pub time_to_first_image_median_ms: f64,
+    /// Bytes that arrived before the first image: the header and every
+    /// page received by then (the root directory page and page 0, and any
+    /// page pushed meanwhile), median of the repeats.
+    pub bytes_to_first_image: u64,
     pub overfetch_ratio: Option<f64>,
     pub refined_ms: Option<f64>,
     pub tcp_loopback_mb_per_s: f64,
@@ -106,17 +110,13 @@ pub fn run_bench(job: &BenchStreamJob) -> anyhow::Result<BenchStreamReport> {
         distance: 2.5,
     };
 
-    let mut ttfi = Vec::new();
+    let (mut ttfi, mut first_bytes) = (Vec::new(), Vec::new());
     for _ in 0..job.repeats.max(1) {
-        ttfi.push(first_image_ms(
-            &url,
-            &name,
-            &mut renderer,
-            camera,
-            job.width,
-            job.height,
-        )?);
+        let (ms, bytes) = first_image(&url, &name, &mut renderer, camera, job.width, job.height)?;
+        ttfi.push(ms);
+        first_bytes.push(bytes);
     }
+    first_bytes.sort_unstable();
     let mut sorted = ttfi.clone();
     sorted.sort_by(f64::total_cmp);
     let median = sorted[sorted.len() / 2];
@@ -157,6 +157,7 @@ pub fn run_bench(job: &BenchStreamJob) -> anyhow::Result<BenchStreamReport> {
         adapter: renderer.adapter_description(),
         time_to_first_image_ms: ttfi,
         time_to_first_image_median_ms: median,
+        bytes_to_first_image: first_bytes[first_bytes.len() / 2],
         overfetch_ratio: refined.report.overfetch_ratio,
         refined_ms: refined.report.time_to_refined_ms,
         tcp_loopback_mb_per_s: tcp,
@@ -164,15 +165,16 @@ pub fn run_bench(job: &BenchStreamJob) -> anyhow::Result<BenchStreamReport> {
     })
 }
 
-/// Connect to first frame drawn, in milliseconds.
-fn first_image_ms(
+/// Connect to first frame drawn, in milliseconds, and the bytes that had
+/// arrived by then.
+fn first_image(
     url: &str,
     scene: &str,
     renderer: &mut Renderer,
     camera: CameraSpec,
     w: u32,
     h: u32,
-) -> anyhow::Result<f64> {
+) -> anyhow::Result<(f64, u64)> {
     let started = Instant::now();
     let mut viewer = Viewer::open_remote(url, scene, SessionOptions::default(), usize::MAX)?;
     while viewer.hierarchy().is_none_or(|h| !h.is_resident(0)) {
@@ -184,6 +186,7 @@ fn first_image_ms(
         viewer.pump(Duration::from_millis(20))?;
     }
     let header = viewer.header().cloned().context("header")?;
+    let bytes = header.encode().len() as u64 + viewer.stats().bytes_received;
     let cam = camera.resolve(&header, w, h);
     let (mut cut, mut rgba) = (FrameState::default(), Vec::new());
     draw_frame(
@@ -195,7 +198,7 @@ fn first_image_ms(
         &mut cut,
         &mut rgba,
     )?;
-    Ok(started.elapsed().as_secs_f64() * 1e3)
+    Ok((started.elapsed().as_secs_f64() * 1e3, bytes))
 }
 
 /// One TCP stream over loopback, 64 KiB writes, for `seconds`.
@@ -330,7 +333,7 @@ async fn stream_all(
 pub fn describe(r: &BenchStreamReport) -> String {
     let mut s = format!(
         "{} ({} bytes, server page cache {} bytes) on {}\n\
-         time to first image: median {:.1} ms of {} (min {:.1}, max {:.1})\n\
+         time to first image: median {:.1} ms of {} (min {:.1}, max {:.1}), {} bytes before it\n\
          refined in {} ms, overfetch {}\n\
          plain TCP loopback, one stream: {:.0} MB/s\n",
         r.scene.display(),
@@ -344,6 +347,7 @@ pub fn describe(r: &BenchStreamReport) -> String {
             .copied()
             .fold(f64::INFINITY, f64::min),
         r.time_to_first_image_ms.iter().copied().fold(0.0, f64::max),
+        r.bytes_to_first_image,
         r.refined_ms.map_or("-".into(), |m| format!("{m:.0}")),
         r.overfetch_ratio.map_or("-".into(), |o| format!("{o:.3}")),
         r.tcp_loopback_mb_per_s
