@@ -8,7 +8,8 @@
 //! environment; an [`ObjectScene`] is one scene in it, a
 //! [`farfield_store::PageSource`] whose header and directory are read once
 //! and whose pages are read by range requests and verified like a file's.
-//! [`publish`] uploads a built file; a [`DiskTier`] may keep pages read
+//! [`publish`] uploads a built file ([`files`] moves any file in or out,
+//! for builds that read their inputs from a store); a [`DiskTier`] may keep pages read
 //! from the store on local disk, under the server's page cache.
 //!
 //! The server's page reads are blocking calls on its blocking pool and
@@ -19,12 +20,14 @@
 //! neither threads nor time.
 
 mod bucket;
+mod files;
 mod publish;
 mod scene;
 mod tier;
 mod url;
 
 pub use bucket::{Bucket, BucketOptions, DEFAULT_COALESCE_BYTES, Listed, RemoteError};
+pub use files::{MAX_FILES, ObjectFile, download_file, list_files, upload_file};
 pub use publish::publish;
 pub use scene::ObjectScene;
 pub use tier::DiskTier;

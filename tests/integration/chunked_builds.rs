@@ -266,6 +266,20 @@ fn child(args: &[&str], envs: &[(&str, &str)], cgroup: Option<&MemoryCgroup>) ->
     (out.status.success() && child_ran(&out.stdout), stdout)
 }
 
+/// As [`child`], with its standard error too (where a failure says why).
+fn child_output(args: &[&str], envs: &[(&str, &str)]) -> (bool, String, String) {
+    let out = child_test("chunked_builds::build_child")
+        .env("FARFIELD_BUILD_CHILD_ARGS", args.join("\n"))
+        .envs(envs.iter().copied())
+        .output()
+        .expect("run");
+    (
+        out.status.success() && child_ran(&out.stdout),
+        String::from_utf8_lossy(&out.stdout).into_owned(),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
+}
+
 fn build_folders(tmp: &Path) -> Vec<PathBuf> {
     std::fs::read_dir(tmp)
         .map(|d| {
@@ -544,10 +558,14 @@ fn parts_built_apart_and_merged_are_the_whole_build() {
     assert!(!dir.join("refused.ff").exists());
 }
 
-/// Parts merged straight into object storage (`merge --out s3://...`)
-/// store the whole build's bytes.
+/// A build on many machines through a store, as Entwine's subset builds
+/// run: the parts read the survey's tiles from the store (`build
+/// s3://bucket/tiles/ --subset I/N --out s3://bucket/parts/I`), the merge
+/// reads the parts from it and publishes the scene to it; the stored scene
+/// is the whole build from local files, byte for byte, and nothing
+/// downloaded is left behind. Wrong addresses fail with what is wrong.
 #[test]
-fn parts_merge_into_a_store() {
+fn parts_read_their_inputs_from_a_store_and_merge_through_it() {
     let dir = scratch("chunked-parts-store");
     let Some(store) = crate::s3::S3Store::start_or_skip(&dir.join("store"), &["scenes"]) else {
         return;
@@ -555,33 +573,111 @@ fn parts_merge_into_a_store() {
     let input = tiles(&dir, 20_000, 2);
     let whole = dir.join("whole.ff");
     build(&input, &whole, &["--memory", "1"]);
-    let part = |i: u32| dir.join(format!("part{i}"));
-    for i in [1, 2] {
-        build(
-            &input,
-            &part(i),
-            &["--memory", "1", "--subset", &format!("{i}/2")],
-        );
+    // The tiles put in the store as a survey is delivered into one.
+    let mut tile_names = Vec::new();
+    for entry in std::fs::read_dir(&input).unwrap() {
+        let tile = entry.unwrap().path();
+        let name = tile.file_name().unwrap().to_str().unwrap().to_owned();
+        let object = store.object_file("scenes", &format!("tiles/{name}"));
+        std::fs::create_dir_all(object.parent().unwrap()).unwrap();
+        std::fs::copy(&tile, object).unwrap();
+        tile_names.push(name);
     }
-    let (p1, p2) = (part(1).display().to_string(), part(2).display().to_string());
+    assert_eq!(tile_names.len(), 4, "{tile_names:?}");
     let env = store.env();
     let envs: Vec<(&str, &str)> = env.iter().map(|(k, v)| (*k, v.as_str())).collect();
-    let (ok, stdout) = child(
-        &[
-            "merge",
-            &p2,
-            &p1,
+    let tmp = dir.join("tmp");
+    let tmp_arg = tmp.display().to_string();
+    let run = |args: &[&str]| {
+        let mut all = args.to_vec();
+        all.extend(["--tmp", &tmp_arg, "--json"]);
+        child_output(&all, &envs)
+    };
+    for i in [1, 2] {
+        let (ok, _, stderr) = run(&[
+            "build",
+            "s3://scenes/tiles/",
+            "--memory",
+            "1",
+            "--subset",
+            &format!("{i}/2"),
             "--out",
-            "s3://scenes/survey.ff",
-            "--json",
-        ],
-        &envs,
-        None,
-    );
-    assert!(ok, "merge into the store failed: {stdout}");
+            &format!("s3://scenes/parts/{i}"),
+        ]);
+        assert!(ok, "part {i} failed: {stderr}");
+        assert!(
+            store
+                .object_file("scenes", &format!("parts/{i}/part.json"))
+                .exists(),
+            "part {i} has no manifest in the store"
+        );
+    }
+    let (ok, _, stderr) = run(&[
+        "merge",
+        "s3://scenes/parts/2",
+        "s3://scenes/parts/1",
+        "--out",
+        "s3://scenes/survey.ff",
+    ]);
+    assert!(ok, "merge through the store failed: {stderr}");
     assert!(
         std::fs::read(store.object_file("scenes", "survey.ff")).unwrap()
             == std::fs::read(&whole).unwrap(),
         "the store holds other bytes than the whole build"
     );
+    assert_eq!(
+        build_folders(&tmp),
+        Vec::<PathBuf>::new(),
+        "downloads left behind"
+    );
+
+    // A whole build from one tile in the store is the build of the local tile.
+    let one = dir.join("one.ff");
+    build(&input.join(&tile_names[0]), &one, &[]);
+    let from_store = dir.join("one-from-store.ff");
+    let (ok, _, stderr) = run(&[
+        "build",
+        &format!("s3://scenes/tiles/{}", tile_names[0]),
+        "--out",
+        from_store.to_str().unwrap(),
+    ]);
+    assert!(ok, "a build of a stored tile failed: {stderr}");
+    assert!(std::fs::read(&from_store).unwrap() == std::fs::read(&one).unwrap());
+
+    // A part's prefix taken, a prefix that is no part, an input not there.
+    for (args, why) in [
+        (
+            vec![
+                "build",
+                "s3://scenes/tiles/",
+                "--subset",
+                "1/2",
+                "--out",
+                "s3://scenes/parts/1",
+            ],
+            "already holds a part",
+        ),
+        (
+            vec![
+                "merge",
+                "s3://scenes/tiles",
+                "--out",
+                "s3://scenes/refused.ff",
+            ],
+            "not a finished part",
+        ),
+        (
+            vec![
+                "build",
+                "s3://scenes/nothing/",
+                "--out",
+                "s3://scenes/refused.ff",
+            ],
+            "no such object",
+        ),
+    ] {
+        let (ok, _, stderr) = run(&args);
+        assert!(!ok && stderr.contains(why), "{args:?}: {stderr}");
+    }
+    assert!(!store.object_file("scenes", "refused.ff").exists());
 }

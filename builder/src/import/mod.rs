@@ -122,7 +122,7 @@ pub fn load_inputs(inputs: &[String], params: &Params) -> Result<Scene, ImportEr
 }
 
 /// Extensions [`load_input`] reads.
-const READABLE: [&str; 7] = ["obj", "ply", "off", "las", "laz", "pdb", "ent"];
+pub const READABLE: [&str; 7] = ["obj", "ply", "off", "las", "laz", "pdb", "ent"];
 
 /// `inputs` with each folder replaced by its readable files, sorted; a
 /// folder with none is an error (a wrong folder must not build nothing).

@@ -12,13 +12,14 @@ use farfield_builder::bsp::BspOptions;
 use farfield_builder::cubes::CubeOptions;
 use farfield_builder::import::{Params, load_inputs};
 use farfield_builder::kinds::BuildSettings;
-use farfield_builder::out_of_core::{self, Budget, Plan, Subset};
+use farfield_builder::out_of_core::{self, Budget, Plan, Subset, TempDir};
 use farfield_builder::plp::PlpOptions;
 use farfield_builder::{BuildError, BuildOptions, Progress};
+use farfield_objects::is_store_url;
 use farfield_store::{check_target, write_atomic, write_atomic_parts};
 use farfield_tools::meters::memory;
 
-use super::{BuildArgs, Report, counted, folder_of, publish_and_remove};
+use super::{BuildArgs, Report, counted, folder_of, publish_and_remove, remote};
 
 /// Steps without a measure of their own (import, writing): a spinner and
 /// what is going on.
@@ -56,7 +57,8 @@ fn budget_of(args: &BuildArgs, local: &Path, remote: bool) -> Budget {
 }
 
 /// `build --subset I/N`: part I of a build on many machines, into the
-/// folder `--out` (see `farfield-server merge`).
+/// folder `--out`, or under the store prefix `--out` (see
+/// `farfield-server merge`).
 fn run_subset(
     args: &BuildArgs,
     subset: Subset,
@@ -68,15 +70,28 @@ fn run_subset(
         "--subset builds spheres only, not {}",
         args.kind
     );
-    let budget = Budget {
-        // A part's temporary files go beside it, not inside it.
-        tmp: args.tmp.clone().unwrap_or_else(|| folder_of(&args.out)),
-        ..budget_of(args, &args.out, false)
+    // A part for a store is built into the temporary folder, then
+    // uploaded (the store reached first, so a wrong address fails at once).
+    let remote = match args.out.to_str().filter(|o| is_store_url(o)) {
+        Some(out) => Some(remote::part_target(&args.store, out)?),
+        None => None,
     };
+    // A part's temporary files go beside its folder, not inside it.
+    let budget = budget_of(args, &args.out, remote.is_some());
     let started = Instant::now();
-    let job = out_of_core::plan_out_of_core(&args.inputs, params, &budget)?;
+    let staging = TempDir::create(&budget.tmp)
+        .with_context(|| format!("making a temporary folder in {}", budget.tmp.display()))?;
+    let staged = remote::stage_inputs(&args.inputs, &args.store, staging.path())?;
+    let mut job = out_of_core::plan_out_of_core(&staged.inputs, params, &budget)?;
+    for (path, name) in staged.names {
+        job.name_input(&path, name);
+    }
+    let folder = match &remote {
+        Some(_) => staging.file("part"),
+        None => args.out.clone(),
+    };
     let stats = job
-        .build_subset(subset, &args.out, &Bar(progress))
+        .build_subset(subset, &folder, &Bar(progress))
         .with_context(|| {
             format!(
                 "building part {}/{} of {}",
@@ -85,6 +100,12 @@ fn run_subset(
                 args.inputs.join(" ")
             )
         })?;
+    if let Some((bucket, prefix)) = &remote {
+        progress.set_message(format!("uploading {}", args.out.display()));
+        remote::upload_part(&folder, bucket, prefix)
+            .with_context(|| format!("uploading the part to {}", args.out.display()))?;
+    }
+    drop(staging);
     progress.finish_and_clear();
     let seconds = started.elapsed().as_secs_f64();
     let text = format!(
@@ -151,7 +172,7 @@ impl Made {
 pub fn run(args: &BuildArgs) -> anyhow::Result<Report> {
     let params = Params::parse(&args.params).map_err(anyhow::Error::msg)?;
     if let Some(subset) = args.subset {
-        // A part is a folder, not a scene file: no store, no file target.
+        // A part is a folder (or a prefix in a store), not a scene file.
         return run_subset(args, subset, &params, &progress_bar(args.json));
     }
     // Published to a store: built into a temporary file first (the store
@@ -168,12 +189,19 @@ pub fn run(args: &BuildArgs) -> anyhow::Result<Report> {
     let builder = farfield_builder::kinds::builder_named(&args.kind)
         .with_context(|| format!("unknown hierarchy kind {:?}", args.kind))?;
     let budget = budget_of(args, &local, store.is_some());
+    // Inputs in a store are downloaded first, into a folder that goes
+    // when the build ends.
+    let staging = remote::staging_for(args.inputs.iter().map(String::as_str), &budget.tmp)?;
+    let inputs = match &staging {
+        Some(dir) => remote::stage_inputs(&args.inputs, &args.store, dir.path())?.inputs,
+        None => args.inputs.clone(),
+    };
     // Only spheres are built out of core; other kinds load the scene.
     let plan = if builder.out_of_core {
-        out_of_core::plan(&args.inputs, &params, &budget)?
+        out_of_core::plan(&inputs, &params, &budget)?
     } else {
         Plan::InMemory {
-            scene: load_inputs(&args.inputs, &params)?,
+            scene: load_inputs(&inputs, &params)?,
             note: args.memory.map(|_| {
                 format!(
                     "--memory bounds sphere builds only: the {} hierarchy is built in memory",
@@ -255,6 +283,7 @@ pub fn run(args: &BuildArgs) -> anyhow::Result<Report> {
     let h = made.header().clone();
     // The spilled pages and their temporary folder go now.
     drop(made);
+    drop(staging);
     if let Some(target) = &store {
         bytes = publish_and_remove(&local, target)?;
     }

@@ -12,7 +12,7 @@ use farfield_store::{check_target, write_atomic_parts};
 use farfield_tools::meters::memory;
 
 use super::build::{Bar, progress_bar};
-use super::{MergeArgs, Report, counted, folder_of, publish_and_remove};
+use super::{MergeArgs, Report, counted, folder_of, publish_and_remove, remote};
 
 pub fn run(args: &MergeArgs) -> anyhow::Result<Report> {
     // Published to a store: merged into a temporary file first (the store
@@ -35,7 +35,14 @@ pub fn run(args: &MergeArgs) -> anyhow::Result<Report> {
     };
     let progress = progress_bar(args.json);
     let started = Instant::now();
-    let (finished, stats) = out_of_core::merge(&args.parts, &options, &tmp, &Bar(&progress))
+    // Parts in a store are downloaded first, into a folder that goes when
+    // the merge ends.
+    let staging = remote::staging_for(args.parts.iter().filter_map(|p| p.to_str()), &tmp)?;
+    let parts = match &staging {
+        Some(dir) => remote::stage_parts(&args.parts, &args.store, dir.path())?,
+        None => args.parts.clone(),
+    };
+    let (finished, stats) = out_of_core::merge(&parts, &options, &tmp, &Bar(&progress))
         .with_context(|| format!("merging {} parts", args.parts.len()))?;
     let h = finished.file.header.clone();
     let mut bytes = write_atomic_parts(
@@ -45,6 +52,7 @@ pub fn run(args: &MergeArgs) -> anyhow::Result<Report> {
         &finished.file.tail(),
     )?;
     drop(finished);
+    drop(staging);
     if let Some(target) = &store {
         bytes = publish_and_remove(&local, target)?;
     }

@@ -11,6 +11,7 @@ mod inspect;
 mod lidar_tiles;
 mod merge;
 mod publish;
+mod remote;
 mod serve;
 
 use std::net::SocketAddr;
@@ -70,7 +71,8 @@ pub enum Command {
 
 #[derive(Debug, clap::Args)]
 pub struct MergeArgs {
-    /// The parts' folders.
+    /// The parts' folders, or their prefixes in a store
+    /// (`s3://bucket/parts/1`, downloaded under `--tmp` first).
     #[arg(required = true)]
     pub parts: Vec<PathBuf>,
     /// The scene file to write, or `s3://bucket/key.ff` to publish it to
@@ -250,7 +252,8 @@ pub struct ExportArgs {
 
 #[derive(Debug, clap::Args)]
 pub struct BuildArgs {
-    /// Input files (.obj .ply .off .las .laz .pdb), folders of them (a survey's tiles), or generated scenes (gen:island, gen:tree).
+    /// Input files (.obj .ply .off .las .laz .pdb), folders of them (a survey's tiles), generated scenes (gen:island, gen:tree),
+    /// or objects in a store (`s3://bucket/tile.las`, or `s3://bucket/survey/` for every readable object under it; downloaded under `--tmp` first).
     #[arg(required = true)]
     pub inputs: Vec<String>,
     /// The file to write (written to a temporary file, then renamed), or
@@ -276,7 +279,8 @@ pub struct BuildArgs {
     #[arg(long, value_parser = farfield_builder::out_of_core::parse_bytes)]
     pub memory: Option<u64>,
     /// Spheres: build part I of N (`I/N`, I from 1 to N) of a point cloud,
-    /// into the folder `--out`, for a build on many machines: each part
+    /// into the folder `--out` (or under the store prefix
+    /// `s3://bucket/parts/I`), for a build on many machines: each part
     /// reads all the inputs but sizes only its own region; `merge` joins
     /// the N parts into the scene.
     #[arg(long, value_name = "I/N")]

@@ -56,6 +56,7 @@ use crate::spheres::{BuildOptions, BuildStats};
 pub use budget::{default_memory, parse_bytes};
 pub use part::{MANIFEST, PartStats, Subset, merge};
 pub(crate) use source::PointSource;
+pub use temp::TempDir;
 
 /// Bytes of memory an in-memory sphere build takes per point at its peak
 /// (measured: 82 at 50 million generated lidar points, more for small
@@ -118,6 +119,9 @@ pub enum Plan {
 pub struct Job {
     sources: Vec<PointSource>,
     budget: Budget,
+    /// What a part's manifest calls the input read from a path, where it
+    /// is not the path (see [`Job::name_input`]).
+    names: Vec<(PathBuf, String)>,
 }
 
 /// Decides how to build `inputs` within `budget`: LAS and LAZ files are
@@ -237,6 +241,7 @@ fn job_of(entries: Vec<Input>, budget: &Budget) -> Job {
     Job {
         sources,
         budget: budget.clone(),
+        names: Vec::new(),
     }
 }
 
@@ -295,6 +300,14 @@ pub struct OutOfCoreStats {
 }
 
 impl Job {
+    /// Names the input read from `path` as `name` in a part's manifest,
+    /// which the merge compares across parts: a copy of an object in a
+    /// store, downloaded under a temporary folder whose path differs from
+    /// one machine to another, is named by its address.
+    pub fn name_input(&mut self, path: &std::path::Path, name: String) {
+        self.names.push((path.to_owned(), name));
+    }
+
     /// Points the inputs hold, as far as their headers say.
     pub fn points(&self) -> u64 {
         self.sources.iter().map(PointSource::count).sum()

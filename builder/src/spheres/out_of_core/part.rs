@@ -148,7 +148,11 @@ impl Job {
             version: VERSION,
             subset,
             shared: Shared {
-                inputs: self.sources.iter().map(input_id).collect(),
+                inputs: self
+                    .sources
+                    .iter()
+                    .map(|s| input_id(s, &self.names))
+                    .collect(),
                 points: counted.points,
                 chunks,
                 chunk_points: counted.chunk_points,
@@ -192,11 +196,15 @@ impl Job {
     }
 }
 
-/// An input as the parts' manifests name it.
-fn input_id(source: &PointSource) -> (String, u64) {
+/// An input as the parts' manifests name it: its path, or the name
+/// `names` gives that path.
+fn input_id(source: &PointSource, names: &[(PathBuf, String)]) -> (String, u64) {
     match source {
         PointSource::Las { path, .. } => (
-            path.display().to_string(),
+            names
+                .iter()
+                .find(|(p, _)| p == path)
+                .map_or_else(|| path.display().to_string(), |(_, name)| name.clone()),
             std::fs::metadata(path).map_or(0, |m| m.len()),
         ),
         PointSource::Memory(g) => (g.name.clone(), 0),

@@ -20,7 +20,7 @@ const UNLOCKED_GRACE: Duration = Duration::from_secs(60);
 
 /// A build's temporary folder, removed with everything in it when dropped.
 #[derive(Debug)]
-pub(crate) struct TempDir {
+pub struct TempDir {
     path: PathBuf,
     /// Held for the folder's life: the lock is the claim of ownership.
     _lock: File,
@@ -29,7 +29,7 @@ pub(crate) struct TempDir {
 impl TempDir {
     /// Makes a fresh folder under `parent` (made if missing), after
     /// removing the folders of builds that are no longer running.
-    pub(crate) fn create(parent: &Path) -> io::Result<Self> {
+    pub fn create(parent: &Path) -> io::Result<Self> {
         std::fs::create_dir_all(parent)?;
         remove_abandoned(parent);
         let nanos = SystemTime::now()
@@ -50,12 +50,12 @@ impl TempDir {
         }
     }
 
-    pub(crate) fn path(&self) -> &Path {
+    pub fn path(&self) -> &Path {
         &self.path
     }
 
     /// A file in the folder.
-    pub(crate) fn file(&self, name: &str) -> PathBuf {
+    pub fn file(&self, name: &str) -> PathBuf {
         self.path.join(name)
     }
 }

@@ -39,6 +39,7 @@ fn scratch(name: &str) -> PathBuf {
 fn both_builds(g: Geometry, tmp: &std::path::Path) -> (PagedFile, PagedFile, OutOfCoreStats) {
     let (in_memory, _) = build_spheres(Scene::single(g.clone()), &BuildOptions::default()).unwrap();
     let job = Job {
+        names: Vec::new(),
         sources: vec![PointSource::Memory(g)],
         budget: Budget {
             memory: 0,
@@ -104,6 +105,7 @@ fn a_failed_build_leaves_no_temporary_files() {
     let tmp = scratch("failed");
     let las = tmp.join("gone.las");
     let job = Job {
+        names: Vec::new(),
         sources: vec![PointSource::Las {
             path: las,
             info: crate::import::las::LasInfo {
@@ -234,6 +236,7 @@ fn a_las_header_with_wrong_bounds_is_counted_again() {
         "the header was not damaged"
     );
     let job = Job {
+        names: Vec::new(),
         sources: vec![PointSource::Las {
             path: path.clone(),
             info,

@@ -1,0 +1,158 @@
+//! Whole files between local disk and a bucket: uploads, downloads and
+//! listings under a prefix. A build on many machines reads its inputs
+//! (LAS tiles) from a store and hands its parts to the merge through one,
+//! as Entwine's subset builds do; the builder itself reads local files
+//! only, so these are copied in and out around it.
+
+use std::io::{Read, Write};
+use std::path::Path;
+
+use object_store::WriteMultipart;
+use object_store::path::Path as ObjectPath;
+
+use crate::{Bucket, RemoteError};
+
+/// Bytes per part of a multipart upload (S3 wants at least 5 MiB for all
+/// but the last).
+const PART_BYTES: usize = 8 << 20;
+/// Parts in flight at once.
+const PARTS_IN_FLIGHT: usize = 4;
+/// Bytes per range request of a download: each request has the bucket's
+/// deadline, so a file of any size downloads in pieces that each fit it.
+const DOWNLOAD_PIECE: u64 = 8 << 20;
+/// Objects listed under one prefix at most: a part holds two files a
+/// chunk, and a build has thousands of chunks at most; a prefix holding
+/// more is refused rather than listed into unbounded memory.
+pub const MAX_FILES: usize = 100_000;
+
+/// An object under a prefix: its key and size.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct ObjectFile {
+    pub key: String,
+    pub len: u64,
+}
+
+/// Every object under `prefix` (a folder: `prefix/...`, at any depth), by
+/// key; an error past [`MAX_FILES`].
+pub fn list_files(bucket: &Bucket, prefix: &str) -> Result<Vec<ObjectFile>, RemoteError> {
+    let store = bucket.store();
+    let folder = prefix.trim_end_matches('/').to_owned();
+    let path = (!folder.is_empty()).then(|| ObjectPath::from(folder.as_str()));
+    let listed = bucket.run(prefix, "listing", async move {
+        use futures_util::TryStreamExt;
+        let mut out = Vec::new();
+        let mut stream = store.list(path.as_ref());
+        while let Some(meta) = stream.try_next().await? {
+            out.push(ObjectFile {
+                key: meta.location.to_string(),
+                len: meta.size,
+            });
+            if out.len() > MAX_FILES {
+                break;
+            }
+        }
+        Ok(out)
+    })?;
+    if listed.len() > MAX_FILES {
+        return Err(RemoteError::Unavailable(format!(
+            "s3://{}/{prefix}: more than {MAX_FILES} objects under it",
+            bucket.url().bucket
+        )));
+    }
+    let mut listed = listed;
+    listed.sort_by(|a, b| a.key.cmp(&b.key));
+    Ok(listed)
+}
+
+/// Uploads `file` as object `key` in one multipart upload, which the store
+/// makes visible only when it completes (a reader sees no object or the
+/// whole one) and which is aborted on any failure; the bytes stored, as
+/// the store reports them after the upload.
+pub fn upload_file(bucket: &Bucket, file: &Path, key: &str) -> Result<u64, RemoteError> {
+    let location = format!("s3://{}/{key}", bucket.url().bucket);
+    let failed = |message: String| RemoteError::Unavailable(format!("{location}: {message}"));
+    let mut reader = std::fs::File::open(file)
+        .map_err(|e| failed(format!("cannot read {}: {e}", file.display())))?;
+    let len = reader
+        .metadata()
+        .map_err(|e| failed(format!("cannot read {}: {e}", file.display())))?
+        .len();
+    let store = bucket.store();
+    let path = ObjectPath::from(key);
+    let uploaded = bucket.block_on(async move {
+        let upload = store
+            .put_multipart(&path)
+            .await
+            .map_err(|e| e.to_string())?;
+        let mut writer = WriteMultipart::new_with_chunk_size(upload, PART_BYTES);
+        let mut buffer = vec![0; 1 << 20];
+        loop {
+            let n = match reader.read(&mut buffer) {
+                Ok(0) => break,
+                Ok(n) => n,
+                Err(e) => {
+                    let _ = writer.abort().await;
+                    return Err(format!("reading {}: {e}", file.display()));
+                }
+            };
+            if let Err(e) = writer.wait_for_capacity(PARTS_IN_FLIGHT).await {
+                let _ = writer.abort().await;
+                return Err(e.to_string());
+            }
+            writer.write(&buffer[..n]);
+        }
+        writer.finish().await.map_err(|e| e.to_string())?;
+        Ok(())
+    });
+    match uploaded {
+        Some(Ok(())) => {}
+        Some(Err(message)) => return Err(failed(message)),
+        None => return Err(failed("the store's client is closed".into())),
+    }
+    let stored = bucket.head(key)?.len;
+    if stored != len {
+        return Err(failed(format!(
+            "the store holds {stored} bytes after the upload, not the file's {len}"
+        )));
+    }
+    Ok(stored)
+}
+
+/// Downloads object `key` (`len` bytes, as listed) to `file`, in range
+/// requests of [`DOWNLOAD_PIECE`] bytes, each the same version of the
+/// object as the first (an object replaced meanwhile is an error, not a
+/// file of two versions). Written beside `file` and renamed when whole: a
+/// download cut off leaves no file under its name.
+pub fn download_file(bucket: &Bucket, key: &str, len: u64, file: &Path) -> Result<(), RemoteError> {
+    let location = format!("s3://{}/{key}", bucket.url().bucket);
+    let local = |e: std::io::Error| {
+        RemoteError::Unavailable(format!("{location}: cannot write {}: {e}", file.display()))
+    };
+    let stamp = bucket.head(key)?;
+    if stamp.len != len {
+        return Err(RemoteError::Changed(location));
+    }
+    let mut partial = file.as_os_str().to_owned();
+    partial.push(".partial");
+    let partial = std::path::PathBuf::from(partial);
+    let mut out = std::io::BufWriter::new(std::fs::File::create(&partial).map_err(local)?);
+    let written = (|| {
+        let mut at = 0;
+        while at < len {
+            let end = (at + DOWNLOAD_PIECE).min(len);
+            let bytes = bucket.get_range(key, at..end, stamp.e_tag.as_deref())?;
+            if bytes.len() as u64 != end - at {
+                return Err(RemoteError::Changed(location.clone()));
+            }
+            out.write_all(&bytes).map_err(local)?;
+            at = end;
+        }
+        out.flush().map_err(local)?;
+        drop(out);
+        std::fs::rename(&partial, file).map_err(local)
+    })();
+    if written.is_err() {
+        let _ = std::fs::remove_file(&partial);
+    }
+    written
+}
