@@ -4,7 +4,7 @@
 //! as Entwine's subset builds do; the builder itself reads local files
 //! only, so these are copied in and out around it.
 
-use std::io::{Read, Write};
+use std::io::Read;
 use std::path::Path;
 
 use object_store::WriteMultipart;
@@ -20,6 +20,8 @@ const PARTS_IN_FLIGHT: usize = 4;
 /// Bytes per range request of a download: each request has the bucket's
 /// deadline, so a file of any size downloads in pieces that each fit it.
 const DOWNLOAD_PIECE: u64 = 8 << 20;
+/// Range requests of a download in flight at once.
+const PIECES_IN_FLIGHT: usize = 4;
 /// Objects listed under one prefix at most: a part holds two files a
 /// chunk, and a build has thousands of chunks at most; a prefix holding
 /// more is refused rather than listed into unbounded memory.
@@ -119,10 +121,11 @@ pub fn upload_file(bucket: &Bucket, file: &Path, key: &str) -> Result<u64, Remot
 }
 
 /// Downloads object `key` (`len` bytes, as listed) to `file`, in range
-/// requests of [`DOWNLOAD_PIECE`] bytes, each the same version of the
-/// object as the first (an object replaced meanwhile is an error, not a
-/// file of two versions). Written beside `file` and renamed when whole: a
-/// download cut off leaves no file under its name.
+/// requests of [`DOWNLOAD_PIECE`] bytes, [`PIECES_IN_FLIGHT`] at once
+/// (one stream from a store is far slower than its bandwidth), each the
+/// same version of the object as the first (an object replaced meanwhile
+/// is an error, not a file of two versions). Written beside `file` and
+/// renamed when whole: a download cut off leaves no file under its name.
 pub fn download_file(bucket: &Bucket, key: &str, len: u64, file: &Path) -> Result<(), RemoteError> {
     let location = format!("s3://{}/{key}", bucket.url().bucket);
     let local = |e: std::io::Error| {
@@ -135,24 +138,68 @@ pub fn download_file(bucket: &Bucket, key: &str, len: u64, file: &Path) -> Resul
     let mut partial = file.as_os_str().to_owned();
     partial.push(".partial");
     let partial = std::path::PathBuf::from(partial);
-    let mut out = std::io::BufWriter::new(std::fs::File::create(&partial).map_err(local)?);
-    let written = (|| {
-        let mut at = 0;
-        while at < len {
-            let end = (at + DOWNLOAD_PIECE).min(len);
-            let bytes = bucket.get_range(key, at..end, stamp.e_tag.as_deref())?;
-            if bytes.len() as u64 != end - at {
-                return Err(RemoteError::Changed(location.clone()));
-            }
-            out.write_all(&bytes).map_err(local)?;
-            at = end;
-        }
-        out.flush().map_err(local)?;
-        drop(out);
-        std::fs::rename(&partial, file).map_err(local)
-    })();
+    let out = std::fs::File::create(&partial).map_err(local)?;
+    let written = out
+        .set_len(len)
+        .map_err(local)
+        .and_then(|()| download_pieces(bucket, key, len, stamp.e_tag.as_deref(), &out))
+        .and_then(|()| out.sync_all().map_err(local))
+        .and_then(|()| std::fs::rename(&partial, file).map_err(local));
     if written.is_err() {
         let _ = std::fs::remove_file(&partial);
     }
     written
+}
+
+/// The pieces of object `key` written at their offsets in `out`, by
+/// [`PIECES_IN_FLIGHT`] threads taking the next piece as each finishes
+/// (each request has the bucket's deadline); the first error stops them.
+fn download_pieces(
+    bucket: &Bucket,
+    key: &str,
+    len: u64,
+    e_tag: Option<&str>,
+    out: &std::fs::File,
+) -> Result<(), RemoteError> {
+    use std::os::unix::fs::FileExt;
+    use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+    let location = format!("s3://{}/{key}", bucket.url().bucket);
+    let (next, failed) = (AtomicU64::new(0), AtomicBool::new(false));
+    let worker = || -> Result<(), RemoteError> {
+        while !failed.load(Ordering::Relaxed) {
+            let at = next.fetch_add(DOWNLOAD_PIECE, Ordering::Relaxed);
+            if at >= len {
+                break;
+            }
+            let end = (at + DOWNLOAD_PIECE).min(len);
+            let piece = bucket.get_range(key, at..end, e_tag).and_then(|bytes| {
+                if bytes.len() as u64 != end - at {
+                    return Err(RemoteError::Changed(location.clone()));
+                }
+                out.write_all_at(&bytes, at).map_err(|e| {
+                    RemoteError::Unavailable(format!("{location}: cannot write its copy: {e}"))
+                })
+            });
+            if piece.is_err() {
+                failed.store(true, Ordering::Relaxed);
+                return piece;
+            }
+        }
+        Ok(())
+    };
+    let threads = PIECES_IN_FLIGHT.min(len.div_ceil(DOWNLOAD_PIECE).max(1) as usize);
+    std::thread::scope(|scope| {
+        let handles: Vec<_> = (0..threads).map(|_| scope.spawn(worker)).collect();
+        handles
+            .into_iter()
+            .map(|h| {
+                h.join().unwrap_or_else(|_| {
+                    Err(RemoteError::Unavailable(format!(
+                        "{location}: a download thread failed"
+                    )))
+                })
+            })
+            .collect::<Result<Vec<()>, _>>()
+            .map(|_| ())
+    })
 }
