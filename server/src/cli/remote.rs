@@ -171,9 +171,11 @@ pub(super) fn stage_parts(
                 .key
                 .strip_prefix(prefix)
                 .map(|n| n.trim_start_matches('/'))
-                .filter(|n| !n.is_empty() && !n.contains('/'))
+                .filter(|n| !n.is_empty() && !n.contains('/') && !n.starts_with('.'))
             else {
-                // A part is one level of files; anything deeper is not its.
+                // A part is one level of files named by the build; anything
+                // deeper, or `..`, is not its (and must not be written
+                // outside its folder).
                 continue;
             };
             download_file(&bucket, &file.key, file.len, &folder.join(name))
