@@ -29,6 +29,7 @@ pub use page::{
 };
 
 use std::collections::HashMap;
+use std::sync::Arc;
 
 use crate::FormatError;
 use crate::file::{FileHeader, PageEntry};
@@ -76,7 +77,10 @@ pub struct Directory {
     /// client's memory follows what it visited, and a header's counts,
     /// which nothing bounds, are never allocated for.
     refs: HashMap<u32, DirRef>,
-    pages: HashMap<u32, DirectoryPage>,
+    /// Shared, not copied, by a clone: the server hands its whole
+    /// directory to every read-ahead walker of every session, and a
+    /// directory page never changes once inserted.
+    pages: HashMap<u32, Arc<DirectoryPage>>,
     bytes: usize,
 }
 
@@ -188,7 +192,7 @@ impl Directory {
         for c in &page.children {
             self.refs.insert(c.number, *c);
         }
-        if self.pages.insert(number, page).is_none() {
+        if self.pages.insert(number, Arc::new(page)).is_none() {
             self.bytes += bytes.len();
         }
         Ok(())

@@ -178,3 +178,26 @@ fn a_forged_page_with_a_fresh_checksum_is_still_refused() {
     let err = dir.insert(4, &layout.pages[0]).unwrap_err();
     assert!(err.to_string().contains("node order"), "{err}");
 }
+
+/// A clone (the server's whole directory, handed to each read-ahead
+/// walker) shares the directory pages instead of copying them, and what
+/// is inserted into one is not seen by the other.
+#[test]
+fn a_clone_shares_its_directory_pages_and_inserts_apart() {
+    let pages = (ROOT_ENTRIES + 2 * FANOUT) as u32;
+    let (whole_dir, _, layout) = whole(pages);
+    let copy = whole_dir.clone();
+    for n in 0..layout.count() {
+        assert!(
+            Arc::ptr_eq(&whole_dir.pages[&n], &copy.pages[&n]),
+            "directory page {n} was copied"
+        );
+    }
+    let h = header(pages, u64::from(pages) * 3, &layout);
+    let mut partial = Directory::new(&h);
+    partial.insert(pages, &layout.pages[0]).unwrap();
+    let mut grown = partial.clone();
+    grown.insert(pages + 1, &layout.pages[1]).unwrap();
+    assert_eq!((partial.inserted(), grown.inserted()), (1, 2));
+    assert!(!partial.has(pages + 1) && grown.has(pages + 1));
+}
