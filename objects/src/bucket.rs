@@ -383,7 +383,7 @@ impl Drop for Bucket {
     }
 }
 
-fn stamp(meta: &ObjectMeta) -> ObjectStamp {
+pub(crate) fn stamp(meta: &ObjectMeta) -> ObjectStamp {
     ObjectStamp {
         len: meta.size,
         e_tag: meta.e_tag.clone(),

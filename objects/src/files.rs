@@ -7,9 +7,11 @@
 use std::io::Read;
 use std::path::Path;
 
+use farfield_store::ObjectStamp;
 use object_store::WriteMultipart;
 use object_store::path::Path as ObjectPath;
 
+use crate::bucket::stamp;
 use crate::{Bucket, RemoteError};
 
 /// Bytes per part of a multipart upload (S3 wants at least 5 MiB for all
@@ -27,11 +29,11 @@ const PIECES_IN_FLIGHT: usize = 4;
 /// more is refused rather than listed into unbounded memory.
 pub const MAX_FILES: usize = 100_000;
 
-/// An object under a prefix: its key and size.
+/// An object under a prefix: its key, and its size and version as listed.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct ObjectFile {
     pub key: String,
-    pub len: u64,
+    pub stamp: ObjectStamp,
 }
 
 /// Every object under `prefix` (a folder: `prefix/...`, at any depth), by
@@ -40,14 +42,14 @@ pub fn list_files(bucket: &Bucket, prefix: &str) -> Result<Vec<ObjectFile>, Remo
     let store = bucket.store();
     let folder = prefix.trim_end_matches('/').to_owned();
     let path = (!folder.is_empty()).then(|| ObjectPath::from(folder.as_str()));
-    let listed = bucket.run(prefix, "listing", async move {
+    let mut listed = bucket.run(prefix, "listing", async move {
         use futures_util::TryStreamExt;
         let mut out = Vec::new();
         let mut stream = store.list(path.as_ref());
         while let Some(meta) = stream.try_next().await? {
             out.push(ObjectFile {
                 key: meta.location.to_string(),
-                len: meta.size,
+                stamp: stamp(&meta),
             });
             if out.len() > MAX_FILES {
                 break;
@@ -61,7 +63,6 @@ pub fn list_files(bucket: &Bucket, prefix: &str) -> Result<Vec<ObjectFile>, Remo
             bucket.url().bucket
         )));
     }
-    let mut listed = listed;
     listed.sort_by(|a, b| a.key.cmp(&b.key));
     Ok(listed)
 }
@@ -120,21 +121,23 @@ pub fn upload_file(bucket: &Bucket, file: &Path, key: &str) -> Result<u64, Remot
     Ok(stored)
 }
 
-/// Downloads object `key` (`len` bytes, as listed) to `file`, in range
-/// requests of [`DOWNLOAD_PIECE`] bytes, [`PIECES_IN_FLIGHT`] at once
-/// (one stream from a store is far slower than its bandwidth), each the
-/// same version of the object as the first (an object replaced meanwhile
-/// is an error, not a file of two versions). Written beside `file` and
-/// renamed when whole: a download cut off leaves no file under its name.
-pub fn download_file(bucket: &Bucket, key: &str, len: u64, file: &Path) -> Result<(), RemoteError> {
+/// Downloads object `key` (of `stamp`, as listed or asked for) to `file`,
+/// in range requests of [`DOWNLOAD_PIECE`] bytes, [`PIECES_IN_FLIGHT`] at
+/// once (one stream from a store is far slower than its bandwidth), each
+/// of the version `stamp` names (an object replaced meanwhile is an error,
+/// not a file of two versions). Written beside `file` and renamed when
+/// whole: a download cut off leaves no file under its name.
+pub fn download_file(
+    bucket: &Bucket,
+    key: &str,
+    stamp: &ObjectStamp,
+    file: &Path,
+) -> Result<(), RemoteError> {
     let location = format!("s3://{}/{key}", bucket.url().bucket);
     let local = |e: std::io::Error| {
         RemoteError::Unavailable(format!("{location}: cannot write {}: {e}", file.display()))
     };
-    let stamp = bucket.head(key)?;
-    if stamp.len != len {
-        return Err(RemoteError::Changed(location));
-    }
+    let len = stamp.len;
     let mut partial = file.as_os_str().to_owned();
     partial.push(".partial");
     let partial = std::path::PathBuf::from(partial);

@@ -8,9 +8,10 @@
 //! environment; an [`ObjectScene`] is one scene in it, a
 //! [`farfield_store::PageSource`] whose header and directory are read once
 //! and whose pages are read by range requests and verified like a file's.
-//! [`publish`] uploads a built file ([`files`] moves any file in or out,
-//! for builds that read their inputs from a store); a [`DiskTier`] may keep pages read
-//! from the store on local disk, under the server's page cache.
+//! [`publish`] uploads a built file (and [`upload_file`] and
+//! [`download_file`] any file, for builds whose inputs and parts are in a
+//! store); a [`DiskTier`] may keep pages read from the store on local
+//! disk, under the server's page cache.
 //!
 //! The server's page reads are blocking calls on its blocking pool and
 //! prefetch threads, so a bucket runs its requests on a small runtime of

@@ -124,6 +124,14 @@ pub fn load_inputs(inputs: &[String], params: &Params) -> Result<Scene, ImportEr
 /// Extensions [`load_input`] reads.
 pub const READABLE: [&str; 7] = ["obj", "ply", "off", "las", "laz", "pdb", "ent"];
 
+/// Whether a file named `name` has an extension [`load_input`] reads (any
+/// case): what a folder, on disk or in a store, contributes to a build.
+pub fn is_readable(name: &std::path::Path) -> bool {
+    name.extension()
+        .and_then(|e| e.to_str())
+        .is_some_and(|e| READABLE.contains(&e.to_ascii_lowercase().as_str()))
+}
+
 /// `inputs` with each folder replaced by its readable files, sorted; a
 /// folder with none is an error (a wrong folder must not build nothing).
 pub fn expand_folders(inputs: &[String]) -> Result<Vec<String>, ImportError> {
@@ -141,11 +149,7 @@ pub fn expand_folders(inputs: &[String]) -> Result<Vec<String>, ImportError> {
         let mut files = Vec::new();
         for entry in std::fs::read_dir(path).map_err(io)? {
             let file = entry.map_err(io)?.path();
-            let readable = file
-                .extension()
-                .and_then(|e| e.to_str())
-                .is_some_and(|e| READABLE.contains(&e.to_ascii_lowercase().as_str()));
-            if readable && file.is_file() {
+            if is_readable(&file) && file.is_file() {
                 files.push(file.to_string_lossy().into_owned());
             }
         }

@@ -9,9 +9,11 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::Context;
-use farfield_builder::import::READABLE;
+use farfield_builder::import::{READABLE, is_readable};
 use farfield_builder::out_of_core::{MANIFEST, TempDir};
-use farfield_objects::{Bucket, RemoteError, download_file, is_store_url, list_files, upload_file};
+use farfield_objects::{
+    Bucket, ObjectFile, RemoteError, download_file, is_store_url, list_files, upload_file,
+};
 
 use super::StoreArgs;
 
@@ -59,12 +61,12 @@ pub(super) fn stage_inputs(
         }
         let (bucket, url) = store.bucket(input, Default::default())?;
         let folder = input.ends_with('/') || url.key.is_empty();
-        for (key, len) in objects_of(&bucket, &url.key, folder).with_context(|| input.clone())? {
-            let name = format!("s3://{}/{key}", url.bucket);
+        for object in objects_of(&bucket, &url.key, folder).with_context(|| input.clone())? {
+            let name = format!("s3://{}/{}", url.bucket, object.key);
             // Numbered: two prefixes may hold files of one name.
-            let file_name = key.rsplit('/').next().unwrap_or(&key);
+            let file_name = object.key.rsplit('/').next().unwrap_or(&object.key);
             let local = dir.join(format!("{}-{file_name}", staged.names.len()));
-            download_file(&bucket, &key, len, &local)
+            download_file(&bucket, &object.key, &object.stamp, &local)
                 .with_context(|| format!("downloading {name}"))?;
             staged.inputs.push(local.display().to_string());
             staged.names.push((local, name));
@@ -75,24 +77,24 @@ pub(super) fn stage_inputs(
 
 /// The readable objects under the prefix `key/` when `folder` (the input
 /// ended in `/`), else the object `key` if there is one, else those under
-/// `key/`: (key, bytes), by key. (A folder is not asked for as an object:
-/// some stores answer that with an error rather than "not found".)
-fn objects_of(bucket: &Bucket, key: &str, folder: bool) -> anyhow::Result<Vec<(String, u64)>> {
+/// `key/`, by key. (A folder is not asked for as an object: some stores
+/// answer that with an error rather than "not found".)
+fn objects_of(bucket: &Bucket, key: &str, folder: bool) -> anyhow::Result<Vec<ObjectFile>> {
     if !folder {
         match bucket.head(key) {
-            Ok(stamp) => return Ok(vec![(key.to_owned(), stamp.len)]),
+            Ok(stamp) => {
+                return Ok(vec![ObjectFile {
+                    key: key.to_owned(),
+                    stamp,
+                }]);
+            }
             Err(RemoteError::NotFound(_)) => {}
             Err(e) => return Err(e.into()),
         }
     }
-    let readable: Vec<(String, u64)> = list_files(bucket, key)?
+    let readable: Vec<ObjectFile> = list_files(bucket, key)?
         .into_iter()
-        .filter(|o| {
-            o.key
-                .rsplit_once('.')
-                .is_some_and(|(_, ext)| READABLE.contains(&ext.to_ascii_lowercase().as_str()))
-        })
-        .map(|o| (o.key, o.len))
+        .filter(|o| is_readable(Path::new(&o.key)))
         .collect();
     anyhow::ensure!(
         !readable.is_empty(),
@@ -178,7 +180,7 @@ pub(super) fn stage_parts(
                 // outside its folder).
                 continue;
             };
-            download_file(&bucket, &file.key, file.len, &folder.join(name))
+            download_file(&bucket, &file.key, &file.stamp, &folder.join(name))
                 .with_context(|| format!("downloading s3://{}/{}", url.bucket, file.key))?;
         }
         local.push(folder);
