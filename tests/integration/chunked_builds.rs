@@ -8,6 +8,7 @@ use std::time::Duration;
 
 use farfield_builder::import::Params;
 use farfield_builder::out_of_core::ABORT_AFTER_ENV;
+use farfield_builder::scene::Primitives;
 use farfield_builder::{BuildOptions, build_spheres};
 use farfield_client::camera_spec::CameraSpec;
 use farfield_client::frame_loop::Until;
@@ -108,35 +109,54 @@ fn with_far_point(input: &Path, far: DVec3, out: &Path) {
     )
     .expect("load");
     let g = &mut scene.geometries[0];
-    g.positions.push(far);
-    if let Some(c) = &mut g.colors {
-        c.push([255, 0, 0]);
-    }
-    if let Some(n) = &mut g.normals {
-        n.push(glam::Vec3::Z);
+    // A mesh's unused vertex would be left out: it gets a triangle, as
+    // small next to the scene as a cloud's point is.
+    let side = g.positions.first().map_or(1.0, |&p| p.distance(far)) * 1e-5;
+    let corners = match &mut g.primitives {
+        Primitives::Triangles(triangles) => {
+            let first = g.positions.len() as u32;
+            triangles.push([first, first + 1, first + 2]);
+            vec![far, far + DVec3::X * side, far + DVec3::Y * side]
+        }
+        _ => vec![far],
+    };
+    for corner in corners {
+        g.positions.push(corner);
+        if let Some(c) = &mut g.colors {
+            c.push([255, 0, 0]);
+        }
+        if let Some(n) = &mut g.normals {
+            n.push(glam::Vec3::Z);
+        }
     }
     let (file, _) = build_spheres(scene, &BuildOptions::default()).expect("build");
     write_atomic(out, &file).expect("write");
 }
 
-/// Point clouds forced out of core by a budget far below their needs
-/// against their in-memory builds: the same node record
-/// size and bytes per node within 1 %, the same leaves, and images at a
+/// Point clouds and meshes forced out of core by a budget far below
+/// their needs against their in-memory builds: the same node record size
+/// and bytes per node within 1 %, the same leaves, and images at a
 /// 1-pixel threshold no further from the in-memory build's than the
-/// in-memory build's own with one invisible point more (its tree is as
-/// different; see docs/experiments.md).
+/// in-memory build's own with one invisible point (or triangle) more (its
+/// tree is as different; see docs/experiments.md).
 #[test]
-fn point_clouds_built_in_chunks_render_as_in_memory_builds_do() {
+fn clouds_and_meshes_built_in_chunks_render_as_in_memory_builds_do() {
     let Some(mut renderer) = headless_or_skip(SIZE.0, SIZE.1).unwrap() else {
         return;
     };
     let dir = scratch("chunked");
     // Budgets far below the in-memory builds' (about 100 bytes a point):
     // chunks of the smallest size (1,000 points), and of about 10,000.
-    let mut inputs = vec![("tiles", tiles(&dir, 60_000, 3), "1")];
+    let mut inputs = vec![
+        ("tiles", tiles(&dir, 60_000, 3), "1"),
+        ("tree", PathBuf::from("gen:tree"), "1"),
+    ];
     match shared_data() {
-        Some(data) => inputs.push(("autzen", data.join("autzen_trim.las"), "4M")),
-        None => eprintln!("SKIPPED the autzen part: no shared data"),
+        Some(data) => {
+            inputs.push(("autzen", data.join("autzen_trim.las"), "4M"));
+            inputs.push(("bunny", data.join("stanford-bunny.obj"), "1"));
+        }
+        None => eprintln!("SKIPPED the autzen and bunny parts: no shared data"),
     }
     for (name, input, budget) in inputs {
         let memory = dir.join(format!("{name}.memory.ff"));
@@ -183,23 +203,30 @@ fn point_clouds_built_in_chunks_render_as_in_memory_builds_do() {
             eprintln!(
                 "{name} view {v}: out of core {chunked_db:.2} dB from in memory; in memory with one unseen point more {other_db:.2} dB"
             );
+            // The bound is the other valid tree's; the floor only catches
+            // an image that is not the scene at all (the tree's thin
+            // leaves, a pixel wide, differ most between valid trees: 18.7
+            // dB at the second view).
             assert!(
-                chunked_db >= 20.0 && chunked_db >= other_db - 1.0,
+                chunked_db >= 15.0 && chunked_db >= other_db - 1.0,
                 "{name} view {v}: {chunked_db:.2} dB (another valid tree: {other_db:.2} dB)"
             );
         }
     }
 }
 
-/// A mesh over the budget is built in memory, and the report says why; so
-/// does a kind other than spheres given a budget.
+/// A scene mixing meshes with point clouds over the budget is built in
+/// memory, and the report says why; so does a kind other than spheres
+/// given a budget.
 #[test]
-fn a_mesh_over_the_budget_is_built_in_memory_with_a_note() {
-    let dir = scratch("chunked-mesh");
-    let out = dir.join("tree.ff");
+fn a_mixed_scene_over_the_budget_is_built_in_memory_with_a_note() {
+    let dir = scratch("chunked-mixed");
+    let out = dir.join("mixed.ff");
+    let cloud = tiles(&dir, 2_000, 1);
     let report = crate::cli(&[
         "build",
         "gen:tree",
+        cloud.to_str().unwrap(),
         "--out",
         out.to_str().unwrap(),
         "--memory",
@@ -210,7 +237,7 @@ fn a_mesh_over_the_budget_is_built_in_memory_with_a_note() {
     .json;
     assert_eq!(report["out_of_core"], false);
     let note = report["note"].as_str().unwrap_or_default();
-    assert!(note.contains("not a point cloud"), "{report}");
+    assert!(note.contains("a mesh among point clouds"), "{report}");
     assert!(SceneFile::open(&out).is_ok());
     let cubes = crate::cli(&[
         "build",
@@ -336,23 +363,31 @@ fn a_build_killed_at_any_phase_leaves_nothing_a_later_build_trips_over() {
     let _ = alive.wait();
     std::fs::remove_file(temp(alive.id())).unwrap();
     std::fs::remove_file(&out).unwrap();
+    killed_at_each_phase(&args, &out, &tmp);
+    // A mesh's build, which has phases of its own before the join.
+    let mesh_args = [&["build", "gen:tree"], &args[2..]].concat();
+    killed_at_each_phase(&mesh_args, &out, &tmp);
+}
+
+/// Runs the build of `args` killed after each phase, then whole.
+fn killed_at_each_phase(args: &[&str], out: &Path, tmp: &Path) {
     for phase in ["count", "spread", "chunks", "top", "levels", "pages"] {
-        let (ok, _) = child(&args, &[(ABORT_AFTER_ENV, phase)], None);
+        let (ok, _) = child(args, &[(ABORT_AFTER_ENV, phase)], None);
         assert!(!ok, "{phase}: the build was not killed");
         assert!(!out.exists(), "{phase}: a killed build left an output");
         assert_eq!(
-            build_folders(&tmp).len(),
+            build_folders(tmp).len(),
             1,
             "{phase}: no abandoned folder to clean"
         );
-        let report = crate::cli(&args).expect("the next build");
+        let report = crate::cli(args).expect("the next build");
         assert_eq!(report.json["out_of_core"], true);
         assert!(
-            build_folders(&tmp).is_empty(),
+            build_folders(tmp).is_empty(),
             "{phase}: temporary files left"
         );
-        assert!(SceneFile::open(&out).is_ok());
-        std::fs::remove_file(&out).unwrap();
+        assert!(SceneFile::open(out).is_ok());
+        std::fs::remove_file(out).unwrap();
     }
 }
 
@@ -364,23 +399,42 @@ const LIMIT: u64 = 112 << 20;
 #[cfg(target_os = "linux")]
 #[test]
 fn a_cloud_builds_inside_a_cgroup_smaller_than_its_in_memory_build_needs() {
-    let Some(cgroup) = MemoryCgroup::create("chunked-build", LIMIT) else {
-        return;
-    };
     let dir = scratch("chunked-cgroup");
     let input = tiles(&dir, 1_500_000, 4);
+    builds_inside_a_cgroup("chunked-build", &dir, input.to_str().unwrap(), 1_500_000);
+}
+
+/// So is a mesh: 32 instances of a tree, 2.4 million vertices placed,
+/// which the in-memory build holds as leaves all at once.
+#[cfg(target_os = "linux")]
+#[test]
+fn a_mesh_builds_inside_a_cgroup_smaller_than_its_in_memory_build_needs() {
+    let dir = scratch("chunked-cgroup-mesh");
+    builds_inside_a_cgroup("chunked-build-mesh", &dir, "gen:forest?trees=32", 2_436_320);
+}
+
+/// Builds `input` in memory (outside any cgroup: it must need more than
+/// [`LIMIT`]) and out of core inside a cgroup of [`LIMIT`] bytes, which
+/// must not kill it; `vertices`: the input's.
+#[cfg(target_os = "linux")]
+fn builds_inside_a_cgroup(name: &str, dir: &Path, input: &str, vertices: u64) {
+    let Some(cgroup) = MemoryCgroup::create(name, LIMIT) else {
+        return;
+    };
+    let (input, params): (&str, Vec<&str>) = match input.split_once('?') {
+        Some((generator, param)) => (generator, vec!["--param", param]),
+        None => (input, vec![]),
+    };
     let memory_out = dir.join("memory.ff");
-    let (ok, stdout) = child(
-        &[
-            "build",
-            input.to_str().unwrap(),
-            "--out",
-            memory_out.to_str().unwrap(),
-            "--json",
-        ],
-        &[],
-        None,
-    );
+    let mut args = vec![
+        "build",
+        input,
+        "--out",
+        memory_out.to_str().unwrap(),
+        "--json",
+    ];
+    args.extend(&params);
+    let (ok, stdout) = child(&args, &[], None);
     assert!(ok, "the in-memory build failed");
     let in_memory: serde_json::Value =
         serde_json::from_str(stdout.lines().find(|l| l.starts_with('{')).unwrap()).unwrap();
@@ -388,22 +442,22 @@ fn a_cloud_builds_inside_a_cgroup_smaller_than_its_in_memory_build_needs() {
     assert!(peak > LIMIT, "the in-memory build needs only {peak} bytes");
     let out = dir.join("chunked.ff");
     let budget = (LIMIT / 2).to_string();
-    let (ok, stdout) = child(
-        &[
-            "build",
-            input.to_str().unwrap(),
-            "--out",
-            out.to_str().unwrap(),
-            "--memory",
-            &budget,
-            "--json",
-        ],
-        &[],
-        Some(&cgroup),
-    );
+    let mut args = vec![
+        "build",
+        input,
+        "--out",
+        out.to_str().unwrap(),
+        "--memory",
+        &budget,
+        "--tmp",
+        dir.to_str().unwrap(),
+        "--json",
+    ];
+    args.extend(&params);
+    let (ok, stdout) = child(&args, &[], Some(&cgroup));
     let kills = cgroup.oom_kills();
     eprintln!(
-        "in memory: peak {} MiB; out of core inside {} MiB: cgroup peak {:?} MiB, {kills} OOM kills",
+        "{name}: in memory: peak {} MiB; out of core inside {} MiB: cgroup peak {:?} MiB, {kills} OOM kills",
         peak >> 20,
         LIMIT >> 20,
         cgroup.peak().map(|p| p >> 20)
@@ -413,7 +467,7 @@ fn a_cloud_builds_inside_a_cgroup_smaller_than_its_in_memory_build_needs() {
     let report: serde_json::Value =
         serde_json::from_str(stdout.lines().find(|l| l.starts_with('{')).unwrap()).unwrap();
     assert_eq!(report["out_of_core"], true, "{report}");
-    assert_eq!(report["input_vertices"], 1_500_000);
+    assert_eq!(report["input_vertices"], vertices);
     let scene = SceneFile::open(&out).expect("open");
     assert_eq!(scene.survey_pages().corrupt.len(), 0);
 }

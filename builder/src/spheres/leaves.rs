@@ -161,7 +161,11 @@ pub(crate) fn max_stretch(t: DAffine3) -> f64 {
 /// left out for not being used by any triangle. Reports the geometry's
 /// vertices to `progress`: a mesh's as its triangles are walked, so a
 /// single large scan's bar moves too.
-fn local_leaves(geometry: Geometry, has_color: bool, progress: &dyn Progress) -> (Vec<Leaf>, u64) {
+pub(crate) fn local_leaves(
+    geometry: Geometry,
+    has_color: bool,
+    progress: &dyn Progress,
+) -> (Vec<Leaf>, u64) {
     let Geometry {
         positions,
         normals,

@@ -273,7 +273,7 @@ pub struct BuildArgs {
     #[arg(long, default_value = "spheres", value_parser = kind_names())]
     pub kind: String,
     /// Spheres: the memory the build may use (4G, 512M, bytes); point
-    /// clouds whose build needs more are built out of core, in chunks
+    /// clouds and meshes whose build needs more are built out of core, in chunks
     /// spilled under `--tmp` (default: half the machine's or the memory
     /// cgroup's memory).
     #[arg(long, value_parser = farfield_builder::out_of_core::parse_bytes)]

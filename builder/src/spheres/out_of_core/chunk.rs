@@ -174,7 +174,7 @@ fn root_values(tree: &Tree) -> NodeValues {
     }
 }
 
-fn write_leaves(path: &Path, leaves: &[Leaf]) -> io::Result<()> {
+pub(crate) fn write_leaves(path: &Path, leaves: &[Leaf]) -> io::Result<()> {
     let mut out = BufWriter::with_capacity(1 << 20, File::create(path)?);
     for l in leaves {
         for v in l.position.to_array() {

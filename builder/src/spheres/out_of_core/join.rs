@@ -22,7 +22,10 @@ use farfield_protocol::sphere_codec::NodeLayout;
 #[derive(Debug, Clone, Copy, Default)]
 pub(crate) struct Joined {
     pub chunks: usize,
+    /// Leaves before duplicates collapse: points, or vertices on a
+    /// triangle with an area.
     pub points: u64,
+    pub input_vertices: u64,
     pub nodes: u64,
     pub leaves: u64,
     pub levels: u32,
@@ -44,9 +47,9 @@ impl Joined {
         seconds_before: f64,
     ) -> crate::BuildStats {
         crate::BuildStats {
-            input_vertices: self.points,
+            input_vertices: self.input_vertices,
             input_primitives: self.points,
-            unreferenced_vertices: 0,
+            unreferenced_vertices: self.input_vertices.saturating_sub(self.points),
             collapsed_duplicates: self.collapsed,
             leaves: self.leaves,
             nodes: self.nodes,
@@ -74,6 +77,7 @@ pub(crate) fn join(
 ) -> Result<(SpilledFile, Joined), BuildError> {
     let Sized {
         mut entries,
+        input_vertices,
         median,
         seconds: seconds_sizes,
     } = sized;
@@ -165,7 +169,7 @@ pub(crate) fn join(
             levels: merged.levels,
             nodes: merged.nodes,
             leaves,
-            input_vertices: points,
+            input_vertices,
             bounds_min: bounds.0,
             bounds_max: bounds.1,
             root_center,
@@ -183,6 +187,7 @@ pub(crate) fn join(
     let joined = Joined {
         chunks: entries.len(),
         points,
+        input_vertices,
         nodes: merged.nodes,
         leaves,
         levels: merged.levels,

@@ -35,6 +35,7 @@ mod grid;
 mod join;
 mod median;
 mod merge;
+mod mesh;
 mod part;
 mod phases;
 mod source;
@@ -104,13 +105,13 @@ pub struct Budget {
 /// How a build will run.
 #[derive(Debug)]
 pub enum Plan {
-    /// The scene fits the budget (or is not only points): loaded whole.
+    /// The scene fits the budget (or mixes kinds): loaded whole.
     InMemory {
         scene: Scene,
         /// Why a scene over the budget is still built in memory.
         note: Option<String>,
     },
-    /// Point clouds over the budget: built in chunks.
+    /// Point clouds, or meshes, over the budget: built in chunks.
     OutOfCore(Job),
 }
 
@@ -118,6 +119,8 @@ pub enum Plan {
 #[derive(Debug)]
 pub struct Job {
     sources: Vec<PointSource>,
+    /// Triangle meshes (a job has these or `sources`, not both).
+    meshes: Vec<Scene>,
     budget: Budget,
     /// What a part's manifest calls the input read from a path, where it
     /// is not the path (see [`Job::name_input`]).
@@ -127,7 +130,8 @@ pub struct Job {
 /// Decides how to build `inputs` within `budget`: LAS and LAZ files are
 /// counted from their headers, other inputs loaded (their importers read
 /// whole files); if the points' in-memory build would pass the budget and
-/// every input is a point cloud, the build goes out of core.
+/// the inputs are all point clouds, or all triangle meshes, the build goes
+/// out of core.
 pub fn plan(inputs: &[String], params: &Params, budget: &Budget) -> Result<Plan, ImportError> {
     let entries = survey_inputs(inputs, params)?;
     let points: u64 = entries
@@ -138,31 +142,76 @@ pub fn plan(inputs: &[String], params: &Params, budget: &Budget) -> Result<Plan,
         })
         .sum();
     let need = points.saturating_mul(IN_MEMORY_BYTES_PER_POINT);
-    let mesh = first_mesh(&entries);
-    let note = (need > budget.memory).then(|| {
-        mesh.as_ref().map(|name| {
-            format!(
-                "{name} is not a point cloud: built in memory (about {} MiB, over the budget of {} MiB); only point clouds are built out of core yet",
-                need >> 20,
-                budget.memory >> 20
-            )
-        })
-    });
-    if need <= budget.memory || mesh.is_some() {
-        // Loaded whole, in the order given, as `load_inputs` does.
-        let mut scene = Scene::default();
-        for entry in entries {
-            scene.merge(match entry {
-                Input::Las(source) => source.load(params)?,
-                Input::Loaded(loaded) => loaded,
-            });
-        }
+    if need <= budget.memory {
         return Ok(Plan::InMemory {
-            scene,
-            note: note.flatten(),
+            scene: load_all(entries, params)?,
+            note: None,
         });
     }
-    Ok(Plan::OutOfCore(job_of(entries, budget)))
+    match kind_of(&entries) {
+        Kinds::Points => Ok(Plan::OutOfCore(job_of(entries, budget))),
+        Kinds::Meshes => Ok(Plan::OutOfCore(Job {
+            sources: Vec::new(),
+            meshes: entries
+                .into_iter()
+                .filter_map(|e| match e {
+                    Input::Loaded(scene) => Some(scene),
+                    Input::Las(_) => None,
+                })
+                .collect(),
+            budget: budget.clone(),
+            names: Vec::new(),
+        })),
+        Kinds::Other(why) => Ok(Plan::InMemory {
+            scene: load_all(entries, params)?,
+            note: Some(format!(
+                "{why}: built in memory (about {} MiB, over the budget of {} MiB); only point clouds and meshes, apart, are built out of core",
+                need >> 20,
+                budget.memory >> 20
+            )),
+        }),
+    }
+}
+
+/// Every input loaded whole, in the order given, as `load_inputs` does.
+fn load_all(entries: Vec<Input>, params: &Params) -> Result<Scene, ImportError> {
+    let mut scene = Scene::default();
+    for entry in entries {
+        scene.merge(match entry {
+            Input::Las(source) => source.load(params)?,
+            Input::Loaded(loaded) => loaded,
+        });
+    }
+    Ok(scene)
+}
+
+/// What a build's inputs are, as far as building out of core goes.
+enum Kinds {
+    /// Point clouds only.
+    Points,
+    /// Triangle meshes only.
+    Meshes,
+    /// Anything else (spheres, clouds with meshes): why not out of core.
+    Other(String),
+}
+
+fn kind_of(entries: &[Input]) -> Kinds {
+    let geometries = || {
+        entries.iter().flat_map(|e| match e {
+            Input::Loaded(scene) => scene.geometries.iter(),
+            Input::Las(_) => [].iter(),
+        })
+    };
+    let is_mesh = |g: &&crate::scene::Geometry| matches!(g.primitives, Primitives::Triangles(_));
+    let has_las = entries.iter().any(|e| matches!(e, Input::Las(_)));
+    if let Some(g) = geometries().find(|g| matches!(g.primitives, Primitives::Spheres(_))) {
+        return Kinds::Other(format!("{} is made of spheres", g.name));
+    }
+    match geometries().find(is_mesh) {
+        None => Kinds::Points,
+        Some(_) if !has_las && geometries().all(|g| is_mesh(&g)) => Kinds::Meshes,
+        Some(g) => Kinds::Other(format!("{} is a mesh among point clouds", g.name)),
+    }
 }
 
 /// An out-of-core job for `inputs` whatever their size (a subset of a
@@ -240,6 +289,7 @@ fn job_of(entries: Vec<Input>, budget: &Budget) -> Job {
     }
     Job {
         sources,
+        meshes: Vec::new(),
         budget: budget.clone(),
         names: Vec::new(),
     }
@@ -308,9 +358,15 @@ impl Job {
         self.names.push((path.to_owned(), name));
     }
 
-    /// Points the inputs hold, as far as their headers say.
+    /// Points the inputs hold, as far as their headers say (a mesh's
+    /// vertices).
     pub fn points(&self) -> u64 {
-        self.sources.iter().map(PointSource::count).sum()
+        self.sources.iter().map(PointSource::count).sum::<u64>()
+            + self
+                .meshes
+                .iter()
+                .map(Scene::instanced_vertex_count)
+                .sum::<u64>()
     }
 
     /// Runs the build, telling `progress` how far each phase has got.
@@ -321,6 +377,11 @@ impl Job {
     ) -> Result<(Finished, OutOfCoreStats), BuildError> {
         let temp =
             temp::TempDir::create(&self.budget.tmp).map_err(|e| temp_error(&self.budget.tmp, e))?;
+        if !self.meshes.is_empty() {
+            let meshes = std::mem::take(&mut self.meshes);
+            let (file, stats) = mesh::build(meshes, &self.budget, options, &temp, progress)?;
+            return Ok((Finished { file, _temp: temp }, stats));
+        }
         let counted = phases::count(&mut self.sources, &self.budget, progress)?;
         checkpoint("count");
         let spread = phases::spread(&self.sources, &counted, &temp, &|_| true, progress)?;

@@ -326,6 +326,7 @@ pub fn merge(
         color: first.shared.colors,
     };
     let sized = Sized {
+        input_vertices: entries.iter().map(|e| e.sized.points).sum(),
         entries,
         median,
         seconds,

@@ -36,6 +36,20 @@ pub(crate) struct Counted {
     pub seconds: f64,
 }
 
+/// The bytes of the spread's buffers, and the most points a chunk can
+/// hold, for a build of `points` points within `budget`.
+pub(crate) fn chunk_size(budget: &Budget, points: u64) -> (u64, u64) {
+    let spread_buffers = SPREAD_BUFFERS.min(budget.memory / 8);
+    // Held beside a chunk: the counting grid, the spread's buffers, the
+    // median's bins. Pages are written to disk as they are made.
+    let reserved = (u64::from(grid::MAX_SIDE).pow(3) * 4).min(points.saturating_mul(8))
+        + spread_buffers
+        + MEDIAN_BYTES;
+    let chunk_points =
+        (budget.memory.saturating_sub(reserved) / CHUNK_BYTES_PER_POINT).max(MIN_CHUNK_POINTS);
+    (spread_buffers, chunk_points)
+}
+
 /// Counts every input's points in a grid over the scene and cuts the
 /// chunks a budget of `budget.memory` can build.
 pub(crate) fn count(
@@ -65,14 +79,7 @@ pub(crate) fn count(
     if !(hint.0.is_finite() && hint.1.is_finite()) {
         hint = (DVec3::ZERO, DVec3::ZERO);
     }
-    let spread_buffers = SPREAD_BUFFERS.min(budget.memory / 8);
-    // Held beside a chunk: the counting grid, the spread's buffers, the
-    // median's bins. Pages are written to disk as they are made.
-    let reserved = (u64::from(grid::MAX_SIDE).pow(3) * 4).min(points.saturating_mul(8))
-        + spread_buffers
-        + MEDIAN_BYTES;
-    let chunk_points =
-        (budget.memory.saturating_sub(reserved) / CHUNK_BYTES_PER_POINT).max(MIN_CHUNK_POINTS);
+    let (spread_buffers, chunk_points) = chunk_size(budget, points);
     // LAS headers' bounds are a hint: a scan that finds points well
     // outside them counts again over the bounds it measured (a grid too
     // small would put them all in its edge cells, as chunks too large).
@@ -234,6 +241,9 @@ pub(crate) struct SizedEntry {
 /// The chunks' leaves, sized, and their radii's counts for the median.
 pub(crate) struct Sized {
     pub entries: Vec<SizedEntry>,
+    /// The input's vertices, the header's `input_vertices`: a cloud's
+    /// points, a mesh's vertices (those no triangle uses among them).
+    pub input_vertices: u64,
     pub median: RadiusMedian,
     pub seconds: f64,
 }
@@ -270,6 +280,7 @@ pub(crate) fn size(
         progress.advance(own);
     }
     Ok(Sized {
+        input_vertices: entries.iter().map(|e| e.sized.points).sum(),
         entries,
         median,
         seconds: started.elapsed().as_secs_f64(),

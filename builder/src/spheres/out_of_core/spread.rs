@@ -3,9 +3,8 @@
 //! A record is the point's position (3 x f64: positions stay exact), its
 //! color, a flag byte (bit 0: a halo copy, there only for its neighbours)
 //! and, when the build has them, its normal (3 x f32). Each chunk's records
-//! gather in a buffer that is appended to the chunk's file when full; the
-//! file is opened only for that, so thousands of chunks never hold
-//! thousands of open files.
+//! gather in a buffer that is appended to the chunk's file when full
+//! ([`ChunkFiles`], which meshes' triangles share).
 
 use std::fs::OpenOptions;
 use std::io::{self, Read, Write};
@@ -31,67 +30,36 @@ fn record_bytes(normals: bool) -> usize {
     24 + 4 + if normals { 12 } else { 0 }
 }
 
-/// Writes points to their chunks' files.
-pub(crate) struct Spreader {
+/// A buffer per chunk, appended to the chunk's file when full: the file
+/// is opened only for that, so thousands of chunks never hold thousands of
+/// open files.
+pub(crate) struct ChunkFiles {
     paths: Vec<PathBuf>,
     buffers: Vec<Vec<u8>>,
     buffer_bytes: usize,
-    colors: bool,
-    normals: bool,
-    /// Records written, own and halo.
-    pub(crate) written: u64,
-    pub(crate) halo: u64,
 }
 
-impl Spreader {
+impl ChunkFiles {
     /// `paths`: a file per chunk (made by the first append); `buffer_bytes`
     /// per chunk before it is written out.
-    pub(crate) fn new(
-        paths: Vec<PathBuf>,
-        buffer_bytes: usize,
-        colors: bool,
-        normals: bool,
-    ) -> Self {
+    pub(crate) fn new(paths: Vec<PathBuf>, buffer_bytes: usize) -> Self {
         let buffers = (0..paths.len()).map(|_| Vec::new()).collect();
         Self {
             paths,
             buffers,
-            buffer_bytes: buffer_bytes.max(record_bytes(normals)),
-            colors,
-            normals,
-            written: 0,
-            halo: 0,
+            buffer_bytes,
         }
     }
 
-    /// Adds the `i`th point of `batch` to `chunk` (as a halo copy when
-    /// `halo`).
-    pub(crate) fn add(
-        &mut self,
-        chunk: u32,
-        batch: &Batch<'_>,
-        i: usize,
-        halo: bool,
-    ) -> io::Result<()> {
-        let buffer = &mut self.buffers[chunk as usize];
-        for v in batch.positions[i].to_array() {
-            buffer.extend_from_slice(&v.to_le_bytes());
-        }
-        let rgb = match (self.colors, batch.colors) {
-            (true, Some(c)) => c[i],
-            _ => [0; 3],
-        };
-        buffer.extend_from_slice(&rgb);
-        buffer.push(u8::from(halo));
-        if self.normals {
-            let n = batch.normals.map_or(Vec3::Z, |ns| ns[i]);
-            for v in n.to_array() {
-                buffer.extend_from_slice(&v.to_le_bytes());
-            }
-        }
-        self.written += 1;
-        self.halo += u64::from(halo);
-        if buffer.len() >= self.buffer_bytes {
+    /// The buffer of `chunk`, to append a record to; call
+    /// [`ChunkFiles::written`] after.
+    pub(crate) fn buffer(&mut self, chunk: u32) -> &mut Vec<u8> {
+        &mut self.buffers[chunk as usize]
+    }
+
+    /// Writes out `chunk`'s buffer if it is full.
+    pub(crate) fn written(&mut self, chunk: u32) -> io::Result<()> {
+        if self.buffers[chunk as usize].len() >= self.buffer_bytes {
             self.flush(chunk as usize)?;
         }
         Ok(())
@@ -118,6 +86,70 @@ impl Spreader {
             self.buffers[chunk] = Vec::new();
         }
         Ok(())
+    }
+}
+
+/// Writes points to their chunks' files.
+pub(crate) struct Spreader {
+    files: ChunkFiles,
+    colors: bool,
+    normals: bool,
+    /// Records written, own and halo.
+    pub(crate) written: u64,
+    pub(crate) halo: u64,
+}
+
+impl Spreader {
+    /// `paths`: a file per chunk (made by the first append); `buffer_bytes`
+    /// per chunk before it is written out.
+    pub(crate) fn new(
+        paths: Vec<PathBuf>,
+        buffer_bytes: usize,
+        colors: bool,
+        normals: bool,
+    ) -> Self {
+        Self {
+            files: ChunkFiles::new(paths, buffer_bytes.max(record_bytes(normals))),
+            colors,
+            normals,
+            written: 0,
+            halo: 0,
+        }
+    }
+
+    /// Adds the `i`th point of `batch` to `chunk` (as a halo copy when
+    /// `halo`).
+    pub(crate) fn add(
+        &mut self,
+        chunk: u32,
+        batch: &Batch<'_>,
+        i: usize,
+        halo: bool,
+    ) -> io::Result<()> {
+        let buffer = self.files.buffer(chunk);
+        for v in batch.positions[i].to_array() {
+            buffer.extend_from_slice(&v.to_le_bytes());
+        }
+        let rgb = match (self.colors, batch.colors) {
+            (true, Some(c)) => c[i],
+            _ => [0; 3],
+        };
+        buffer.extend_from_slice(&rgb);
+        buffer.push(u8::from(halo));
+        if self.normals {
+            let n = batch.normals.map_or(Vec3::Z, |ns| ns[i]);
+            for v in n.to_array() {
+                buffer.extend_from_slice(&v.to_le_bytes());
+            }
+        }
+        self.written += 1;
+        self.halo += u64::from(halo);
+        self.files.written(chunk)
+    }
+
+    /// Writes out every buffer.
+    pub(crate) fn finish(self) -> io::Result<()> {
+        self.files.finish()
     }
 }
 

@@ -27,7 +27,25 @@ fn terrain(n: usize, size: f64, seed: u64) -> Geometry {
     g
 }
 
-fn scratch(name: &str) -> PathBuf {
+/// An out-of-core build's header `a` against the in-memory build's `b`:
+/// the same leaves, inputs, bounds and record size, nodes within 2 %.
+pub(super) fn assert_alike(
+    a: &farfield_protocol::file::FileHeader,
+    b: &farfield_protocol::file::FileHeader,
+) {
+    assert_eq!((a.leaves, a.input_vertices), (b.leaves, b.input_vertices));
+    assert_eq!((a.bounds_min, a.bounds_max), (b.bounds_min, b.bounds_max));
+    assert_eq!(a.node_bytes, b.node_bytes);
+    let ratio = a.nodes as f64 / b.nodes as f64;
+    assert!(
+        (0.98..1.02).contains(&ratio),
+        "nodes {} against {}",
+        a.nodes,
+        b.nodes
+    );
+}
+
+pub(super) fn scratch(name: &str) -> PathBuf {
     let dir = std::env::temp_dir().join(format!("farfield-ooc-{name}-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(&dir).unwrap();
@@ -40,6 +58,7 @@ fn both_builds(g: Geometry, tmp: &std::path::Path) -> (PagedFile, PagedFile, Out
     let (in_memory, _) = build_spheres(Scene::single(g.clone()), &BuildOptions::default()).unwrap();
     let job = Job {
         names: Vec::new(),
+        meshes: Vec::new(),
         sources: vec![PointSource::Memory(g)],
         budget: Budget {
             memory: 0,
@@ -81,15 +100,7 @@ fn many_chunks_make_a_valid_file_like_the_in_memory_one() {
     let h = farfield_protocol::paged_file::read_image(&image).unwrap();
     let (a, b) = (&h.header, &expected.header);
     assert_eq!((a.leaves, a.input_vertices), (40_000, 40_000));
-    assert_eq!((a.bounds_min, a.bounds_max), (b.bounds_min, b.bounds_max));
-    assert_eq!(a.node_bytes, b.node_bytes);
-    let ratio = a.nodes as f64 / b.nodes as f64;
-    assert!(
-        (0.98..1.02).contains(&ratio),
-        "nodes {} against {}",
-        a.nodes,
-        b.nodes
-    );
+    assert_alike(a, b);
     assert!(
         a.levels.abs_diff(b.levels) <= 4,
         "levels {} against {}",
@@ -106,6 +117,7 @@ fn a_failed_build_leaves_no_temporary_files() {
     let las = tmp.join("gone.las");
     let job = Job {
         names: Vec::new(),
+        meshes: Vec::new(),
         sources: vec![PointSource::Las {
             path: las,
             info: crate::import::las::LasInfo {
@@ -237,6 +249,7 @@ fn a_las_header_with_wrong_bounds_is_counted_again() {
     );
     let job = Job {
         names: Vec::new(),
+        meshes: Vec::new(),
         sources: vec![PointSource::Las {
             path: path.clone(),
             info,

@@ -1,0 +1,177 @@
+//! Meshes built in chunks against the same meshes built in memory.
+
+use glam::{DAffine3, DQuat, DVec3};
+
+use super::super::chunk::read_leaves;
+use super::super::temp::TempDir;
+use super::super::tests::{assert_alike, scratch};
+use super::super::{Budget, Job};
+use crate::progress::Silent;
+use crate::scene::{Geometry, Instance, Primitives, Scene};
+use crate::spheres::leaves::{Leaf, make_leaves, unpack_normal};
+use crate::{BuildOptions, build_spheres};
+
+/// A wavy `side` x `side` grid of jittered vertices, two triangles a cell,
+/// colored by height; with a vertex no triangle uses and a triangle of no
+/// area, which the in-memory build leaves out.
+fn wavy(side: u32, seed: u64) -> Geometry {
+    let mut rnd = crate::test_random(seed);
+    let mut positions = Vec::new();
+    let mut colors = Vec::new();
+    for y in 0..side {
+        for x in 0..side {
+            let (fx, fy) = (f64::from(x) + rnd() * 0.3, f64::from(y) + rnd() * 0.3);
+            let z = (fx * 0.2).sin() * 3.0 + (fy * 0.15).cos() * 2.0;
+            positions.push(DVec3::new(5000.0 + fx, -200.0 + fy, z));
+            colors.push([(z * 20.0 + 128.0) as u8, (x % 256) as u8, 40]);
+        }
+    }
+    let mut triangles = Vec::new();
+    for y in 0..side - 1 {
+        for x in 0..side - 1 {
+            let i = y * side + x;
+            triangles.push([i, i + 1, i + side]);
+            triangles.push([i + 1, i + side + 1, i + side]);
+        }
+    }
+    // No area: its corners repeat.
+    triangles.push([5, 5, 6]);
+    // Used by nothing.
+    positions.push(DVec3::new(5000.0, -200.0, 100.0));
+    colors.push([1, 2, 3]);
+    let mut g = Geometry::new("wavy", positions, Primitives::Triangles(triangles));
+    g.colors = Some(colors);
+    g
+}
+
+fn budget(memory: u64, tmp: &std::path::Path) -> Budget {
+    Budget {
+        memory,
+        tmp: tmp.to_owned(),
+    }
+}
+
+/// Every chunk's leaves, in chunk order, and how many chunks had some.
+fn chunk_leaves(scene: Scene, tmp: &std::path::Path) -> (Vec<Leaf>, usize) {
+    let temp = TempDir::create(tmp).unwrap();
+    let (sized, _) = super::size(vec![scene], &budget(0, tmp), &temp, &Silent).unwrap();
+    let mut leaves = Vec::new();
+    for e in &sized.entries {
+        leaves.extend(read_leaves(&e.leaves).unwrap());
+    }
+    (leaves, sized.entries.len())
+}
+
+/// Leaves ordered by position, their index in the input forgotten.
+fn by_position(mut leaves: Vec<Leaf>) -> Vec<Leaf> {
+    for l in &mut leaves {
+        l.source = 0;
+    }
+    leaves.sort_by(|a, b| {
+        a.position
+            .to_array()
+            .partial_cmp(&b.position.to_array())
+            .unwrap()
+    });
+    leaves
+}
+
+#[test]
+fn vertices_on_chunk_borders_are_sized_as_in_the_whole_mesh() {
+    let tmp = scratch("mesh-borders");
+    let g = wavy(120, 1);
+    let (expected, stats) = make_leaves(Scene::single(g.clone()), true, &Silent);
+    assert_eq!(stats.unreferenced_vertices, 1);
+    let (leaves, chunks) = chunk_leaves(Scene::single(g), &tmp);
+    assert!(chunks >= 10, "{chunks} chunks");
+    let (a, b) = (by_position(leaves), by_position(expected));
+    assert_eq!(a.len(), b.len());
+    let differ = a.iter().zip(&b).filter(|(x, y)| x != y).count();
+    assert_eq!(differ, 0, "{differ} of {} leaves differ", a.len());
+    assert!(
+        std::fs::read_dir(&tmp).unwrap().next().is_none(),
+        "temporary files left behind"
+    );
+}
+
+#[test]
+fn instances_are_placed_as_the_in_memory_build_places_them() {
+    let tmp = scratch("mesh-instances");
+    let g = wavy(40, 2);
+    let place = |angle: f64, scale: f64, x: f64| {
+        DAffine3::from_scale_rotation_translation(
+            DVec3::splat(scale),
+            DQuat::from_rotation_z(angle),
+            DVec3::new(x, 0.0, 0.0),
+        )
+    };
+    let scene = Scene {
+        geometries: vec![g],
+        instances: [(0.0, 1.0, 0.0), (0.7, 2.0, 300.0), (2.0, 0.5, -400.0)]
+            .into_iter()
+            .map(|(a, s, x)| Instance {
+                geometry: 0,
+                world_from_local: place(a, s, x),
+            })
+            .collect(),
+    };
+    let (expected, _) = make_leaves(scene.clone(), true, &Silent);
+    let (leaves, chunks) = chunk_leaves(scene, &tmp);
+    assert!(chunks >= 3, "{chunks} chunks");
+    let (a, b) = (by_position(leaves), by_position(expected));
+    assert_eq!(a.len(), b.len());
+    for (x, y) in a.iter().zip(&b) {
+        // Placed before sizing here, after in memory: the same up to
+        // rounding.
+        assert!(x.position.distance(y.position) < 1e-9, "{x:?} {y:?}");
+        assert!(
+            (x.radius / y.radius - 1.0).abs() < 1e-5,
+            "radius {x:?} {y:?}"
+        );
+        let cos = unpack_normal(x.normal).dot(unpack_normal(y.normal));
+        assert!(cos > 0.9999, "normal {x:?} {y:?}");
+        assert_eq!(x.color, y.color);
+    }
+}
+
+#[test]
+fn one_chunk_is_the_in_memory_build_byte_for_byte() {
+    let tmp = scratch("mesh-one");
+    let scene = Scene::single(wavy(30, 3));
+    let (expected, _) = build_spheres(scene.clone(), &BuildOptions::default()).unwrap();
+    let job = Job {
+        sources: Vec::new(),
+        meshes: vec![scene],
+        budget: budget(1 << 30, &tmp),
+        names: Vec::new(),
+    };
+    let (finished, stats) = job.build(&BuildOptions::default(), &Silent).unwrap();
+    assert_eq!(stats.chunks, 1);
+    assert_eq!(stats.build.unreferenced_vertices, 1);
+    assert_eq!(stats.build.input_primitives, 29 * 29 * 2 + 1);
+    let file = finished.file.read().unwrap();
+    drop(finished);
+    assert_eq!(file.to_bytes(), expected.to_bytes());
+    assert!(std::fs::read_dir(&tmp).unwrap().next().is_none());
+}
+
+#[test]
+fn many_chunks_make_a_file_like_the_in_memory_one() {
+    let tmp = scratch("mesh-many");
+    let scene = Scene::single(wavy(150, 4));
+    let (expected, _) = build_spheres(scene.clone(), &BuildOptions::default()).unwrap();
+    let job = Job {
+        sources: Vec::new(),
+        meshes: vec![scene],
+        budget: budget(0, &tmp),
+        names: Vec::new(),
+    };
+    let (finished, stats) = job.build(&BuildOptions::default(), &Silent).unwrap();
+    assert!(stats.chunks >= 15, "{} chunks", stats.chunks);
+    assert!(stats.halo_points > 0, "no triangle crosses a border");
+    let image = finished.file.read().unwrap().to_bytes();
+    drop(finished);
+    let h = farfield_protocol::paged_file::read_image(&image).unwrap();
+    assert_alike(&h.header, &expected.header);
+    assert!(std::fs::read_dir(&tmp).unwrap().next().is_none());
+}

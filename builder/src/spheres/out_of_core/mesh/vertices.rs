@@ -1,0 +1,300 @@
+//! A mesh build's vertices and triangles on disk: every instance of every
+//! mesh placed in the world and written once, sequentially, then read back
+//! through memory maps by vertex index.
+//!
+//! Triangles name their corners by index, so spreading a triangle to its
+//! chunks needs its corners' positions wherever they are in the file, and
+//! a chunk needs its vertices' attributes: random access, which a map gives
+//! without holding the vertices in the build's own memory (the operating
+//! system keeps the pages in use and drops the others under pressure).
+
+use std::fs::File;
+use std::io::{self, BufReader, BufWriter, Read, Write};
+use std::path::PathBuf;
+
+use glam::{DAffine3, DVec3, Vec3};
+use memmap2::Mmap;
+
+use super::super::io_error;
+use super::super::temp::TempDir;
+use crate::BuildError;
+use crate::progress::Progress;
+use crate::scene::{Primitives, Rgb8, Scene};
+use crate::spheres::leaves::DEFAULT_COLOR;
+
+/// Bytes of a position (3 x f64), a color, a normal (3 x f32), a triangle
+/// (3 x u32) in the files.
+const POSITION_BYTES: usize = 24;
+const COLOR_BYTES: usize = 3;
+const NORMAL_BYTES: usize = 12;
+pub(crate) const TRIANGLE_BYTES: usize = 12;
+
+/// The meshes' vertices (positions, and colors and normals when the build
+/// carries them) and triangles, written.
+pub(crate) struct MeshFiles {
+    positions: Mmap,
+    colors: Option<Mmap>,
+    normals: Option<Mmap>,
+    triangles: PathBuf,
+    pub(crate) vertices: u64,
+    pub(crate) triangle_count: u64,
+    pub(crate) bounds: (DVec3, DVec3),
+}
+
+/// What the build carries besides positions, decided over every mesh.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Channels {
+    /// Any mesh has colors (the others get [`DEFAULT_COLOR`]).
+    pub colors: bool,
+    /// Every mesh has normals (else all are computed from the faces).
+    pub normals: bool,
+}
+
+impl Channels {
+    pub(crate) fn of(scenes: &[Scene]) -> Self {
+        let geometries = || scenes.iter().flat_map(|s| &s.geometries);
+        Self {
+            colors: geometries().any(|g| g.colors.is_some()),
+            normals: geometries().all(|g| g.normals.is_some()),
+        }
+    }
+}
+
+/// Writes every instance of every mesh of `scenes`, placed, under `temp`,
+/// consuming them (each scene is dropped once written); the unit of
+/// `progress` is a vertex.
+pub(crate) fn write(
+    scenes: Vec<Scene>,
+    channels: Channels,
+    temp: &TempDir,
+    progress: &dyn Progress,
+) -> Result<MeshFiles, BuildError> {
+    let total: u64 = scenes.iter().map(Scene::instanced_vertex_count).sum();
+    if total > u64::from(u32::MAX) {
+        return Err(BuildError::TooLarge(total));
+    }
+    progress.begin("vertices", total);
+    let paths = [
+        "mesh.positions",
+        "mesh.colors",
+        "mesh.normals",
+        "mesh.triangles",
+    ]
+    .map(|name| temp.file(name));
+    let create = |path: &PathBuf| -> Result<BufWriter<File>, BuildError> {
+        File::create(path)
+            .map(|f| BufWriter::with_capacity(1 << 20, f))
+            .map_err(io_error)
+    };
+    let mut out = Writers {
+        positions: create(&paths[0])?,
+        colors: channels.colors.then(|| create(&paths[1])).transpose()?,
+        normals: channels.normals.then(|| create(&paths[2])).transpose()?,
+        triangles: create(&paths[3])?,
+    };
+    let mut base = 0u32;
+    let mut triangle_count = 0u64;
+    let mut bounds = (DVec3::INFINITY, DVec3::NEG_INFINITY);
+    for scene in scenes {
+        for instance in &scene.instances {
+            let g = &scene.geometries[instance.geometry];
+            let Primitives::Triangles(triangles) = &g.primitives else {
+                return Err(BuildError::Invalid(format!(
+                    "{}: not a triangle mesh, and only meshes are built this way",
+                    g.name
+                )));
+            };
+            let place = instance.world_from_local;
+            let normal_from_local = place.matrix3.inverse().transpose();
+            for (i, &local) in g.positions.iter().enumerate() {
+                let p = place.transform_point3(local);
+                if !p.is_finite() {
+                    return Err(BuildError::Invalid(format!(
+                        "{}: vertex {i} has a coordinate that is not a finite number",
+                        g.name
+                    )));
+                }
+                bounds = (bounds.0.min(p), bounds.1.max(p));
+                out.vertex(
+                    p,
+                    g.colors.as_ref().map_or(DEFAULT_COLOR, |c| c[i]),
+                    g.normals
+                        .as_ref()
+                        .map_or(Vec3::Z, |n| placed_normal(n[i], place, normal_from_local)),
+                )
+                .map_err(io_error)?;
+            }
+            for t in triangles {
+                out.triangle(t.map(|v| base + v)).map_err(io_error)?;
+            }
+            triangle_count += triangles.len() as u64;
+            base += g.positions.len() as u32;
+            progress.advance(g.positions.len() as u64);
+        }
+    }
+    out.finish().map_err(io_error)?;
+    let map = |path: &PathBuf| -> Result<Mmap, BuildError> {
+        let file = File::open(path).map_err(io_error)?;
+        // SAFETY: the file is this build's, in its locked temporary folder,
+        // and nothing writes it from here on. Another process truncating it
+        // would make a read fault (SIGBUS): the same hazard as any file
+        // changed under a map, which only a process ignoring the lock can
+        // cause.
+        unsafe { Mmap::map(&file) }.map_err(io_error)
+    };
+    Ok(MeshFiles {
+        positions: map(&paths[0])?,
+        colors: channels.colors.then(|| map(&paths[1])).transpose()?,
+        normals: channels.normals.then(|| map(&paths[2])).transpose()?,
+        triangles: paths[3].clone(),
+        vertices: u64::from(base),
+        triangle_count,
+        bounds,
+    })
+}
+
+/// An input normal placed as a normal is (by the inverse transpose), and
+/// kept unit; a transform that is the identity leaves it as it is, bit for
+/// bit, as the in-memory build does.
+fn placed_normal(n: Vec3, place: DAffine3, normal_from_local: glam::DMat3) -> Vec3 {
+    if place == DAffine3::IDENTITY {
+        return n;
+    }
+    (normal_from_local * n.as_dvec3())
+        .normalize_or_zero()
+        .as_vec3()
+}
+
+struct Writers {
+    positions: BufWriter<File>,
+    colors: Option<BufWriter<File>>,
+    normals: Option<BufWriter<File>>,
+    triangles: BufWriter<File>,
+}
+
+impl Writers {
+    fn vertex(&mut self, p: DVec3, color: Rgb8, normal: Vec3) -> io::Result<()> {
+        for v in p.to_array() {
+            self.positions.write_all(&v.to_le_bytes())?;
+        }
+        if let Some(out) = &mut self.colors {
+            out.write_all(&color)?;
+        }
+        if let Some(out) = &mut self.normals {
+            for v in normal.to_array() {
+                out.write_all(&v.to_le_bytes())?;
+            }
+        }
+        Ok(())
+    }
+
+    fn triangle(&mut self, t: [u32; 3]) -> io::Result<()> {
+        for v in t {
+            self.triangles.write_all(&v.to_le_bytes())?;
+        }
+        Ok(())
+    }
+
+    fn finish(self) -> io::Result<()> {
+        let flush = |w: BufWriter<File>| w.into_inner().map_err(|e| e.into_error()).map(drop);
+        flush(self.positions)?;
+        flush(self.triangles)?;
+        self.colors.map(flush).transpose()?;
+        self.normals.map(flush).transpose()?;
+        Ok(())
+    }
+}
+
+fn f64_at(bytes: &[u8], at: usize) -> f64 {
+    f64::from_le_bytes(bytes[at..at + 8].try_into().unwrap_or_default())
+}
+
+fn f32_at(bytes: &[u8], at: usize) -> f32 {
+    f32::from_le_bytes(bytes[at..at + 4].try_into().unwrap_or_default())
+}
+
+impl MeshFiles {
+    /// Vertex `i`'s position; `None` past the last vertex.
+    pub(crate) fn position(&self, i: u32) -> Option<DVec3> {
+        let at = i as usize * POSITION_BYTES;
+        let b = self.positions.get(at..at + POSITION_BYTES)?;
+        Some(DVec3::new(f64_at(b, 0), f64_at(b, 8), f64_at(b, 16)))
+    }
+
+    /// Every position in order, for the count.
+    pub(crate) fn positions(&self) -> impl Iterator<Item = DVec3> + '_ {
+        self.positions
+            .chunks_exact(POSITION_BYTES)
+            .map(|b| DVec3::new(f64_at(b, 0), f64_at(b, 8), f64_at(b, 16)))
+    }
+
+    /// Vertex `i`'s color, when the build carries colors.
+    pub(crate) fn color(&self, i: u32) -> Option<Rgb8> {
+        let at = i as usize * COLOR_BYTES;
+        let b = self.colors.as_ref()?.get(at..at + COLOR_BYTES)?;
+        Some([b[0], b[1], b[2]])
+    }
+
+    /// Vertex `i`'s input normal, when every mesh has them.
+    pub(crate) fn normal(&self, i: u32) -> Option<Vec3> {
+        let at = i as usize * NORMAL_BYTES;
+        let b = self.normals.as_ref()?.get(at..at + NORMAL_BYTES)?;
+        Some(Vec3::new(f32_at(b, 0), f32_at(b, 4), f32_at(b, 8)))
+    }
+
+    pub(crate) fn has_colors(&self) -> bool {
+        self.colors.is_some()
+    }
+
+    pub(crate) fn has_normals(&self) -> bool {
+        self.normals.is_some()
+    }
+
+    /// Reads every triangle in order, in batches.
+    pub(crate) fn for_each_triangles(&self, each: &mut EachBatch<'_>) -> Result<(), BuildError> {
+        let file = File::open(&self.triangles).map_err(io_error)?;
+        read_triangles(file, each)
+    }
+}
+
+/// What is done with each batch of triangles read.
+pub(crate) type EachBatch<'a> = dyn FnMut(&[[u32; 3]]) -> Result<(), BuildError> + 'a;
+
+/// Reads a file of triangles (3 x u32 each) in batches.
+pub(crate) fn read_triangles(file: File, each: &mut EachBatch<'_>) -> Result<(), BuildError> {
+    const BATCH: usize = 1 << 14;
+    let mut input = BufReader::with_capacity(1 << 20, file);
+    let mut bytes = vec![0u8; BATCH * TRIANGLE_BYTES];
+    let mut batch = Vec::with_capacity(BATCH);
+    loop {
+        let read = read_full(&mut input, &mut bytes).map_err(io_error)?;
+        if read % TRIANGLE_BYTES != 0 {
+            return Err(BuildError::Invalid(
+                "temporary files: a triangle file is not whole triangles".into(),
+            ));
+        }
+        batch.clear();
+        batch.extend(bytes[..read].chunks_exact(TRIANGLE_BYTES).map(|b| {
+            let u = |at: usize| u32::from_le_bytes(b[at..at + 4].try_into().unwrap_or_default());
+            [u(0), u(4), u(8)]
+        }));
+        if !batch.is_empty() {
+            each(&batch)?;
+        }
+        if read < bytes.len() {
+            return Ok(());
+        }
+    }
+}
+
+/// Fills `buffer` unless the input ends first; the bytes read.
+fn read_full(input: &mut impl Read, buffer: &mut [u8]) -> io::Result<usize> {
+    let mut filled = 0;
+    while filled < buffer.len() {
+        match input.read(&mut buffer[filled..])? {
+            0 => break,
+            n => filled += n,
+        }
+    }
+    Ok(filled)
+}
