@@ -35,12 +35,9 @@ pub(crate) fn unit_normals(
         .map(|chunk| {
             let mut usable = true;
             for n in chunk {
-                let d = n.as_dvec3();
-                let len = d.length();
-                if len > 0.0 && len.is_finite() {
-                    *n = (d / len).as_vec3();
-                } else {
-                    usable = false;
+                match unit_normal(*n) {
+                    Some(unit) => *n = unit,
+                    None => usable = false,
                 }
             }
             usable
@@ -49,13 +46,36 @@ pub(crate) fn unit_normals(
     if all_usable {
         return Some(normals);
     }
-    let bad: Vec<usize> = (0..normals.len())
-        .filter(|&i| {
-            let len = normals[i].as_dvec3().length();
-            !(len > 0.0 && len.is_finite())
-        })
-        .collect();
     let triangles = triangles.filter(|t| !t.is_empty())?;
+    repair_normals(&mut normals, positions, triangles);
+    Some(normals)
+}
+
+/// Whether a normal can be made unit: of a length that is finite and not
+/// zero.
+pub(crate) fn is_usable(n: Vec3) -> bool {
+    unit_normal(n).is_some()
+}
+
+/// A normal made unit as [`unit_normals`] makes it, if it is usable.
+pub(crate) fn unit_normal(n: Vec3) -> Option<Vec3> {
+    let d = n.as_dvec3();
+    let len = d.length();
+    (len > 0.0 && len.is_finite()).then(|| (d / len).as_vec3())
+}
+
+/// Replaces each normal that is not [`is_usable`] by the area-weighted
+/// normal of the triangles around its vertex (zero-area ones left out), or
+/// +Z where there are none with an area. A vertex's result depends only
+/// on its own triangles, in their order: a chunk of a mesh holding every
+/// triangle around its vertices repairs them as the whole mesh does.
+pub(crate) fn repair_normals(normals: &mut [Vec3], positions: &[DVec3], triangles: &[[u32; 3]]) {
+    let bad: Vec<usize> = (0..normals.len())
+        .filter(|&i| !is_usable(normals[i]))
+        .collect();
+    if bad.is_empty() {
+        return;
+    }
     let mut sums = vec![DVec3::ZERO; positions.len()];
     for t in triangles {
         let p = t.map(|i| positions.get(i as usize).copied().unwrap_or_default());
@@ -76,5 +96,4 @@ pub(crate) fn unit_normals(
             *slot = n;
         }
     }
-    Some(normals)
 }

@@ -9,13 +9,13 @@
 //!
 //! Importers produce scenes, never files: they know nothing of hierarchies.
 
-mod common;
+pub(crate) mod common;
 pub(crate) mod las;
 mod obj;
 mod off;
 mod params;
 mod pdb;
-mod ply;
+pub(crate) mod ply;
 #[cfg(test)]
 mod test_file;
 
@@ -171,6 +171,26 @@ pub fn expand_folders(inputs: &[String]) -> Result<Vec<String>, ImportError> {
 /// comes near it.
 pub const MAX_COORDINATE: f64 = 1e30;
 
+/// Whether a position is finite and within [`MAX_COORDINATE`].
+pub(crate) fn is_buildable(p: DVec3) -> bool {
+    p.is_finite() && p.abs().max_element() <= MAX_COORDINATE
+}
+
+/// The error of vertex `i` of `path`, at `p`, which is not
+/// [`is_buildable`].
+pub(crate) fn unbuildable(path: &Path, i: u64, p: DVec3) -> ImportError {
+    let what = if p.is_finite() {
+        format!("is beyond ±{MAX_COORDINATE:e}, too large to build")
+    } else {
+        "is not a finite number".into()
+    };
+    ImportError::malformed(
+        path,
+        format!("vertex {i}"),
+        format!("coordinate {what} ({}, {}, {})", p.x, p.y, p.z),
+    )
+}
+
 /// Checks what the builders rely on: at least one primitive, finite
 /// coordinates and radii within [`MAX_COORDINATE`], triangle indices in
 /// range, channel lengths that match the positions.
@@ -185,19 +205,8 @@ pub fn validate(path: &Path, scene: &Scene) -> Result<(), ImportError> {
         // On all threads: for a scanned mesh these two scans were a fifth of
         // its (otherwise serial) import. The first offender is still the
         // one reported.
-        let out_of_range = |p: &DVec3| !(p.is_finite() && p.abs().max_element() <= MAX_COORDINATE);
-        if let Some(i) = first_where(&geometry.positions, out_of_range) {
-            let p = geometry.positions[i];
-            let what = if p.is_finite() {
-                format!("is beyond ±{MAX_COORDINATE:e}, too large to build")
-            } else {
-                "is not a finite number".into()
-            };
-            return Err(ImportError::malformed(
-                path,
-                format!("vertex {i}"),
-                format!("coordinate {what} ({}, {}, {})", p.x, p.y, p.z),
-            ));
+        if let Some(i) = first_where(&geometry.positions, |p| !is_buildable(*p)) {
+            return Err(unbuildable(path, i as u64, geometry.positions[i]));
         }
         if geometry.normals.as_ref().is_some_and(|v| v.len() != n) {
             return Err(ImportError::malformed(

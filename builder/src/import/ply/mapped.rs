@@ -95,4 +95,8 @@ impl Values for Mapped {
         self.release_decoded();
         Ok(())
     }
+
+    fn batch_done(&mut self) {
+        self.release_decoded();
+    }
 }

@@ -58,6 +58,50 @@ pub fn load(path: &Path) -> Result<Scene, ImportError> {
 /// [`load`]; a binary body is memory-mapped when `map` is set and the file
 /// can be, else read.
 fn load_from(path: &Path, map: bool) -> Result<Scene, ImportError> {
+    let mut gather = Gather::default();
+    read_file(path, map, &mut gather)?;
+    Ok(Scene::single(gather.into_geometry(path)))
+}
+
+/// Reads a PLY file's vertices and triangles into `out` a batch at a time
+/// (see [`BodyOut::batch`]), for a build that writes them to disk as they
+/// come; a binary body is mapped where the file can be.
+pub(crate) fn stream(path: &Path, out: &mut dyn BodyOut) -> Result<(), ImportError> {
+    read_file(path, true, out)
+}
+
+/// What a PLY file's header says of it, before its body is read.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct PlyInfo {
+    pub vertices: u64,
+    /// It has `face` or `tristrips` (a mesh; else a point cloud).
+    pub triangles: bool,
+    pub normals: bool,
+    pub colors: bool,
+}
+
+/// Reads a PLY file's header.
+pub(crate) fn survey(path: &Path) -> Result<PlyInfo, ImportError> {
+    let file = File::open(path).map_err(|e| ImportError::io(path, e))?;
+    let header = read_header(path, &mut BufReader::with_capacity(64 << 10, file))?;
+    let vertex = header
+        .elements
+        .iter()
+        .find(|e| e.name == "vertex")
+        .ok_or_else(|| ImportError::malformed(path, "header", "there is no element vertex"))?;
+    let roles = VertexRoles::of(path, vertex)?;
+    Ok(PlyInfo {
+        vertices: vertex.count,
+        triangles: header
+            .elements
+            .iter()
+            .any(|e| matches!(e.name.as_str(), "face" | "tristrips") && !e.props.is_empty()),
+        normals: roles.normal.is_some(),
+        colors: roles.color.is_some(),
+    })
+}
+
+fn read_file(path: &Path, map: bool, out: &mut dyn BodyOut) -> Result<(), ImportError> {
     let file = File::open(path).map_err(|e| ImportError::io(path, e))?;
     // A pipe has no length: its body is read to its end, and sizes taken
     // from the header are trusted only up to a bound (see `UNKNOWN_BODY`).
@@ -72,7 +116,7 @@ fn load_from(path: &Path, map: bool) -> Result<Scene, ImportError> {
     let mut reader = BufReader::with_capacity(64 << 10, file);
     let header = read_header(path, &mut reader)?;
     let body_len = file_len.map_or(UNKNOWN_BODY, |len| len.saturating_sub(header.bytes));
-    let geometry = match header.format {
+    match header.format {
         Format::Ascii => {
             let mut src = Ascii {
                 r: reader,
@@ -80,7 +124,7 @@ fn load_from(path: &Path, map: bool) -> Result<Scene, ImportError> {
                 pos: 0,
                 line_no: header.lines,
             };
-            read_body(path, &header, body_len, &mut src)
+            read_body(path, &header, body_len, &mut src, out)
         }
         Format::BinaryLe | Format::BinaryBe => {
             let big = header.format == Format::BinaryBe;
@@ -90,7 +134,7 @@ fn load_from(path: &Path, map: bool) -> Result<Scene, ImportError> {
                 .then(|| Mapped::new(reader.get_ref(), header.bytes, big))
                 .flatten()
             {
-                return Ok(Scene::single(read_body(path, &header, body_len, &mut src)?));
+                return read_body(path, &header, body_len, &mut src, out);
             }
             let mut src = Binary {
                 reader,
@@ -104,10 +148,68 @@ fn load_from(path: &Path, map: bool) -> Result<Scene, ImportError> {
                 pos: 0,
                 big,
             };
-            read_body(path, &header, body_len, &mut src)
+            read_body(path, &header, body_len, &mut src, out)
         }
-    };
-    Ok(Scene::single(geometry?))
+    }
+}
+
+/// Where a body's vertices and triangles go: into memory whole (an import,
+/// [`Gather`]) or, a batch at a time, to a build's files.
+pub(crate) trait BodyOut {
+    /// The most vertices, or faces, read before they are handed over.
+    fn batch(&self) -> u64;
+    /// The next vertices, in order.
+    fn vertices(&mut self, batch: Vertices) -> Result<(), ImportError>;
+    /// Where the faces' triangles gather; [`BodyOut::triangles_done`] is
+    /// called after each batch of faces.
+    fn triangles(&mut self) -> &mut Vec<[u32; 3]>;
+    fn triangles_done(&mut self) -> Result<(), ImportError>;
+}
+
+/// A whole file in memory: one batch of everything.
+#[derive(Default)]
+struct Gather {
+    vertices: Vertices,
+    triangles: Option<Vec<[u32; 3]>>,
+}
+
+impl BodyOut for Gather {
+    fn batch(&self) -> u64 {
+        u64::MAX
+    }
+
+    fn vertices(&mut self, batch: Vertices) -> Result<(), ImportError> {
+        self.vertices = batch;
+        Ok(())
+    }
+
+    fn triangles(&mut self) -> &mut Vec<[u32; 3]> {
+        self.triangles.get_or_insert_with(Vec::new)
+    }
+
+    fn triangles_done(&mut self) -> Result<(), ImportError> {
+        Ok(())
+    }
+}
+
+impl Gather {
+    fn into_geometry(self, path: &Path) -> Geometry {
+        let Vertices {
+            positions,
+            normals,
+            colors,
+        } = self.vertices;
+        let triangles = self.triangles;
+        let normals = normals.and_then(|n| unit_normals(n, &positions, triangles.as_deref()));
+        let primitives = match triangles {
+            Some(t) => Primitives::Triangles(t),
+            None => Primitives::Points,
+        };
+        let mut geometry = Geometry::new(path.display().to_string(), positions, primitives);
+        geometry.normals = normals;
+        geometry.colors = colors;
+        geometry
+    }
 }
 
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -365,6 +467,9 @@ trait Values {
     fn begin_element(&mut self, _element: &Element) -> io::Result<()> {
         Ok(())
     }
+    /// Called after each batch (see [`BodyOut::batch`]) has been handed
+    /// over: what is behind it is not read again.
+    fn batch_done(&mut self) {}
 }
 
 /// A binary body, read into memory an element at a time and decoded from
@@ -560,7 +665,8 @@ fn read_body<V: Values>(
     header: &Header,
     body_len: u64,
     src: &mut V,
-) -> Result<Geometry, ImportError> {
+    out: &mut dyn BodyOut,
+) -> Result<(), ImportError> {
     let vertex_count = header
         .elements
         .iter()
@@ -568,8 +674,6 @@ fn read_body<V: Values>(
         .map(|e| e.count);
     let vertex_count = vertex_count
         .ok_or_else(|| ImportError::malformed(path, "header", "there is no element vertex"))?;
-    let mut vertices = Vertices::default();
-    let mut triangles: Option<Vec<[u32; 3]>> = None;
     let mut body = Body {
         path,
         src,
@@ -585,13 +689,11 @@ fn read_body<V: Values>(
             .map_err(|e| ImportError::io(path, e))?;
         let cap = element
             .count
-            .min(body_len / element.min_bytes(header.format)) as usize;
+            .min(body_len / element.min_bytes(header.format))
+            .min(out.batch()) as usize;
         match element.name.as_str() {
-            "vertex" => vertices = body.vertices(element, cap)?,
-            "face" | "tristrips" => {
-                let tris = triangles.get_or_insert_with(Vec::new);
-                body.polygons(element, vertex_count, cap, tris)?;
-            }
+            "vertex" => body.vertices(element, cap, out)?,
+            "face" | "tristrips" => body.polygons(element, vertex_count, cap, out)?,
             _ => {
                 for k in 0..element.count {
                     body.instance(element, k, None)?;
@@ -599,27 +701,48 @@ fn read_body<V: Values>(
             }
         }
     }
-    let Vertices {
-        positions,
-        normals,
-        colors,
-    } = vertices;
-    let normals = normals.and_then(|n| unit_normals(n, &positions, triangles.as_deref()));
-    let primitives = match triangles {
-        Some(t) => Primitives::Triangles(t),
-        None => Primitives::Points,
-    };
-    let mut geometry = Geometry::new(path.display().to_string(), positions, primitives);
-    geometry.normals = normals;
-    geometry.colors = colors;
-    Ok(geometry)
+    Ok(())
 }
 
+/// A batch of vertices: positions, and normals and colors where the file
+/// has them.
 #[derive(Default)]
-struct Vertices {
-    positions: Vec<DVec3>,
-    normals: Option<Vec<Vec3>>,
-    colors: Option<Vec<Rgb8>>,
+pub(crate) struct Vertices {
+    pub positions: Vec<DVec3>,
+    pub normals: Option<Vec<Vec3>>,
+    pub colors: Option<Vec<Rgb8>>,
+}
+
+/// Which properties of the vertex element are read as what.
+struct VertexRoles {
+    position: [usize; 3],
+    normal: Option<[usize; 3]>,
+    color: Option<[usize; 3]>,
+}
+
+impl VertexRoles {
+    fn of(path: &Path, element: &Element) -> Result<Self, ImportError> {
+        let slot = |names: &[&str]| {
+            let scalar = |p: &Property| matches!(p.kind, Kind::Scalar(_));
+            element
+                .props
+                .iter()
+                .position(|p| scalar(p) && names.contains(&p.name.as_str()))
+        };
+        let roles: Vec<Option<usize>> = VERTEX_ROLES.iter().map(|names| slot(names)).collect();
+        let [Some(x), Some(y), Some(z), nx, ny, nz, r, g, b] = roles[..] else {
+            return Err(ImportError::malformed(
+                path,
+                "element vertex",
+                "needs x, y and z",
+            ));
+        };
+        Ok(Self {
+            position: [x, y, z],
+            normal: nx.zip(ny).zip(nz).map(|((a, b), c)| [a, b, c]),
+            color: r.zip(g).zip(b).map(|((a, b), c)| [a, b, c]),
+        })
+    }
 }
 
 /// The body being read, with scratch space for one element instance.
@@ -653,24 +776,40 @@ impl<V: Values> Body<'_, V> {
         })
     }
 
-    fn vertices(&mut self, element: &Element, cap: usize) -> Result<Vertices, ImportError> {
-        let slot = |names: &[&str]| {
-            let scalar = |p: &Property| matches!(p.kind, Kind::Scalar(_));
-            element
-                .props
-                .iter()
-                .position(|p| scalar(p) && names.contains(&p.name.as_str()))
-        };
-        let roles: Vec<Option<usize>> = VERTEX_ROLES.iter().map(|names| slot(names)).collect();
-        let [Some(x), Some(y), Some(z), nx, ny, nz, r, g, b] = roles[..] else {
-            return Err(ImportError::malformed(
-                self.path,
-                "element vertex",
-                "needs x, y and z",
-            ));
-        };
-        let normal = nx.zip(ny).zip(nz).map(|((a, b), c)| [a, b, c]);
-        let color = r.zip(g).zip(b).map(|((a, b), c)| [a, b, c]);
+    /// Reads the vertex element into `out`, [`BodyOut::batch`] vertices
+    /// at a time.
+    fn vertices(
+        &mut self,
+        element: &Element,
+        cap: usize,
+        out: &mut dyn BodyOut,
+    ) -> Result<(), ImportError> {
+        let roles = VertexRoles::of(self.path, element)?;
+        let batch = out.batch();
+        let mut done = 0;
+        loop {
+            let n = (element.count - done).min(batch);
+            let vertices = self.vertex_batch(element, &roles, done, n, cap)?;
+            out.vertices(vertices)?;
+            done += n;
+            self.src.batch_done();
+            if done >= element.count {
+                return Ok(());
+            }
+        }
+    }
+
+    /// Vertices `first..first + n` of `element`.
+    fn vertex_batch(
+        &mut self,
+        element: &Element,
+        roles: &VertexRoles,
+        first: u64,
+        n: u64,
+        cap: usize,
+    ) -> Result<Vertices, ImportError> {
+        let [x, y, z] = roles.position;
+        let (normal, color) = (roles.normal, roles.color);
         let ty = |i: usize| match element.props.get(i).map(|p| &p.kind) {
             Some(Kind::Scalar(s)) => *s,
             _ => Scalar::F64,
@@ -680,7 +819,7 @@ impl<V: Values> Body<'_, V> {
         let mut colors = color.map(|_| Vec::with_capacity(cap));
         if let Some(fields) = fast::FixedLayout::of(element)
             && let Some((rest, big)) = self.src.binary_rest()
-            && let Some(records) = fields.records(rest, element.count)
+            && let Some(records) = fields.records(rest, n)
         {
             let [x, y, z] = [x, y, z].map(|i| fields.reader(i, big));
             fields.decode_all(records, &mut positions, |r| DVec3::new(x(r), y(r), z(r)));
@@ -703,7 +842,7 @@ impl<V: Values> Body<'_, V> {
                 colors,
             });
         }
-        for k in 0..element.count {
+        for k in first..first + n {
             self.instance(element, k, None)?;
             let s = |i: usize| self.scalars.get(i).copied().unwrap_or(0.0);
             positions.push(DVec3::new(s(x), s(y), s(z)));
@@ -721,13 +860,14 @@ impl<V: Values> Body<'_, V> {
         })
     }
 
-    /// Reads a `face` (fans) or `tristrips` element into `tris`.
+    /// Reads a `face` (fans) or `tristrips` element into `out`,
+    /// [`BodyOut::batch`] faces at a time.
     fn polygons(
         &mut self,
         element: &Element,
         vertex_count: u64,
         cap: usize,
-        tris: &mut Vec<[u32; 3]>,
+        out: &mut dyn BodyOut,
     ) -> Result<(), ImportError> {
         let strips = element.name == "tristrips";
         let names: &[&str] = if strips {
@@ -743,26 +883,51 @@ impl<V: Values> Body<'_, V> {
                 "has no list property vertex_indices",
             ));
         };
-        tris.reserve(if strips { 0 } else { cap });
+        out.triangles().reserve(if strips { 0 } else { cap });
         let mut polygon = Polygon {
             strips,
             max: vertex_count.min(1 << 32) as f64,
             vertex_count,
             indices: Vec::new(),
         };
+        let batch = out.batch();
+        let mut done = 0;
+        loop {
+            let n = (element.count - done).min(batch);
+            self.polygon_batch(element, list, &mut polygon, done, n, out.triangles())?;
+            out.triangles_done()?;
+            done += n;
+            self.src.batch_done();
+            if done >= element.count {
+                return Ok(());
+            }
+        }
+    }
+
+    /// Faces `first..first + n` of `element`, whose index list is property
+    /// `list`, into `tris`.
+    fn polygon_batch(
+        &mut self,
+        element: &Element,
+        list: usize,
+        polygon: &mut Polygon,
+        first: u64,
+        n: u64,
+        tris: &mut Vec<[u32; 3]>,
+    ) -> Result<(), ImportError> {
         if let Kind::List { count, item } = element.props[list].kind
             && element.props.len() == 1
             && let Some((rest, big)) = self.src.binary_rest()
         {
-            let list = fast::List { count, item, big };
-            if let Some(read) = list.polygons(rest, element.count, &mut polygon, tris) {
+            let fast = fast::List { count, item, big };
+            if let Some(read) = fast.polygons(rest, n, polygon, tris) {
                 self.src.consume(read);
                 return Ok(());
             }
             // Malformed somewhere: read it again value by value, which
             // names the instance.
         }
-        for k in 0..element.count {
+        for k in first..first + n {
             self.instance(element, k, Some(list))?;
             polygon.add(&self.items, tris).map_err(|msg| {
                 ImportError::malformed(self.path, format!("element {} {k}", element.name), msg)

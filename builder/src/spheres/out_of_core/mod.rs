@@ -120,7 +120,7 @@ pub enum Plan {
 pub struct Job {
     sources: Vec<PointSource>,
     /// Triangle meshes (a job has these or `sources`, not both).
-    meshes: Vec<Scene>,
+    meshes: Vec<mesh::MeshInput>,
     budget: Budget,
     /// What a part's manifest calls the input read from a path, where it
     /// is not the path (see [`Job::name_input`]).
@@ -138,6 +138,7 @@ pub fn plan(inputs: &[String], params: &Params, budget: &Budget) -> Result<Plan,
         .iter()
         .map(|e| match e {
             Input::Las(source) => source.count(),
+            Input::Ply { info, .. } => info.vertices,
             Input::Loaded(scene) => scene.instanced_vertex_count(),
         })
         .sum();
@@ -155,7 +156,8 @@ pub fn plan(inputs: &[String], params: &Params, budget: &Budget) -> Result<Plan,
             meshes: entries
                 .into_iter()
                 .filter_map(|e| match e {
-                    Input::Loaded(scene) => Some(scene),
+                    Input::Loaded(scene) => Some(mesh::MeshInput::Scene(scene)),
+                    Input::Ply { path, info } => Some(mesh::MeshInput::Ply { path, info }),
                     Input::Las(_) => None,
                 })
                 .collect(),
@@ -179,6 +181,7 @@ fn load_all(entries: Vec<Input>, params: &Params) -> Result<Scene, ImportError> 
     for entry in entries {
         scene.merge(match entry {
             Input::Las(source) => source.load(params)?,
+            Input::Ply { path, .. } => load_input(&path.display().to_string(), params)?,
             Input::Loaded(loaded) => loaded,
         });
     }
@@ -199,18 +202,23 @@ fn kind_of(entries: &[Input]) -> Kinds {
     let geometries = || {
         entries.iter().flat_map(|e| match e {
             Input::Loaded(scene) => scene.geometries.iter(),
-            Input::Las(_) => [].iter(),
+            Input::Las(_) | Input::Ply { .. } => [].iter(),
         })
     };
     let is_mesh = |g: &&crate::scene::Geometry| matches!(g.primitives, Primitives::Triangles(_));
     let has_las = entries.iter().any(|e| matches!(e, Input::Las(_)));
+    let ply = entries.iter().find_map(|e| match e {
+        Input::Ply { path, .. } => Some(path.display().to_string()),
+        _ => None,
+    });
     if let Some(g) = geometries().find(|g| matches!(g.primitives, Primitives::Spheres(_))) {
         return Kinds::Other(format!("{} is made of spheres", g.name));
     }
-    match geometries().find(is_mesh) {
+    let mesh = geometries().find(is_mesh).map(|g| g.name.clone()).or(ply);
+    match mesh {
         None => Kinds::Points,
         Some(_) if !has_las && geometries().all(|g| is_mesh(&g)) => Kinds::Meshes,
-        Some(g) => Kinds::Other(format!("{} is a mesh among point clouds", g.name)),
+        Some(name) => Kinds::Other(format!("{name} is a mesh among point clouds")),
     }
 }
 
@@ -237,6 +245,11 @@ pub fn plan_out_of_core(
 enum Input {
     /// A LAS or LAZ file, counted from its header, not read yet.
     Las(PointSource),
+    /// A PLY mesh, counted from its header, not read yet.
+    Ply {
+        path: PathBuf,
+        info: crate::import::ply::PlyInfo,
+    },
     /// Any other input, loaded whole by its importer.
     Loaded(Scene),
 }
@@ -251,13 +264,23 @@ fn survey_inputs(inputs: &[String], params: &Params) -> Result<Vec<Input>, Impor
             .extension()
             .and_then(|e| e.to_str())
             .map(str::to_ascii_lowercase);
-        if !input.starts_with("gen:") && matches!(extension.as_deref(), Some("las" | "laz")) {
+        let file = !input.starts_with("gen:");
+        if file && matches!(extension.as_deref(), Some("las" | "laz")) {
             let info = las::survey(path)?;
             entries.push(Input::Las(PointSource::Las {
                 path: path.to_owned(),
                 info,
                 wide: false,
             }));
+        } else if file
+            && extension.as_deref() == Some("ply")
+            && let info = crate::import::ply::survey(path)?
+            && info.triangles
+        {
+            entries.push(Input::Ply {
+                path: path.to_owned(),
+                info,
+            });
         } else {
             entries.push(Input::Loaded(load_input(&input, params)?));
         }
@@ -265,15 +288,16 @@ fn survey_inputs(inputs: &[String], params: &Params) -> Result<Vec<Input>, Impor
     Ok(entries)
 }
 
-/// The name of the first loaded geometry that is not a point cloud.
+/// The name of the first input that is not a point cloud.
 fn first_mesh(entries: &[Input]) -> Option<String> {
-    entries.iter().find_map(|e| {
-        let Input::Loaded(scene) = e else { return None };
-        scene
+    entries.iter().find_map(|e| match e {
+        Input::Las(_) => None,
+        Input::Ply { path, .. } => Some(path.display().to_string()),
+        Input::Loaded(scene) => scene
             .geometries
             .iter()
             .find(|g| !matches!(g.primitives, Primitives::Points))
-            .map(|g| g.name.clone())
+            .map(|g| g.name.clone()),
     })
 }
 
@@ -282,6 +306,8 @@ fn job_of(entries: Vec<Input>, budget: &Budget) -> Job {
     for entry in entries {
         match entry {
             Input::Las(source) => sources.push(source),
+            // Not reached: a mesh is not built with clouds.
+            Input::Ply { .. } => {}
             // Clouds in memory are streamed from there, placed by their
             // instances.
             Input::Loaded(scene) => sources.extend(placed_clouds(scene)),
@@ -365,7 +391,7 @@ impl Job {
             + self
                 .meshes
                 .iter()
-                .map(Scene::instanced_vertex_count)
+                .map(mesh::MeshInput::vertices)
                 .sum::<u64>()
     }
 

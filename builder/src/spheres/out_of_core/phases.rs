@@ -37,14 +37,15 @@ pub(crate) struct Counted {
 }
 
 /// The bytes of the spread's buffers, and the most points a chunk can
-/// hold, for a build of `points` points within `budget`.
-pub(crate) fn chunk_size(budget: &Budget, points: u64) -> (u64, u64) {
+/// hold, for a build of `points` points within `budget`; `median`: whether
+/// the build takes the radii's median (a cloud's does, a mesh's not).
+pub(crate) fn chunk_size(budget: &Budget, points: u64, median: bool) -> (u64, u64) {
     let spread_buffers = SPREAD_BUFFERS.min(budget.memory / 8);
     // Held beside a chunk: the counting grid, the spread's buffers, the
     // median's bins. Pages are written to disk as they are made.
     let reserved = (u64::from(grid::MAX_SIDE).pow(3) * 4).min(points.saturating_mul(8))
         + spread_buffers
-        + MEDIAN_BYTES;
+        + if median { MEDIAN_BYTES } else { 0 };
     let chunk_points =
         (budget.memory.saturating_sub(reserved) / CHUNK_BYTES_PER_POINT).max(MIN_CHUNK_POINTS);
     (spread_buffers, chunk_points)
@@ -79,7 +80,7 @@ pub(crate) fn count(
     if !(hint.0.is_finite() && hint.1.is_finite()) {
         hint = (DVec3::ZERO, DVec3::ZERO);
     }
-    let (spread_buffers, chunk_points) = chunk_size(budget, points);
+    let (spread_buffers, chunk_points) = chunk_size(budget, points, true);
     // LAS headers' bounds are a hint: a scan that finds points well
     // outside them counts again over the bounds it measured (a grid too
     // small would put them all in its edge cells, as chunks too large).

@@ -16,6 +16,7 @@ use super::super::grid::Chunks;
 use super::super::io_error;
 use super::vertices::{MeshFiles, read_triangles};
 use crate::BuildError;
+use crate::import::common::repair_normals;
 use crate::progress::Silent;
 use crate::scene::{Geometry, Primitives};
 use crate::spheres::leaves::local_leaves;
@@ -64,7 +65,17 @@ pub(crate) fn size_mesh_chunk(
         geometry.colors = ids.iter().map(|&i| files.color(i)).collect();
     }
     if files.has_normals() {
-        geometry.normals = ids.iter().map(|&i| files.normal(i)).collect();
+        let mut normals: Vec<_> = ids
+            .iter()
+            .map(|&i| files.normal(i))
+            .collect::<Option<_>>()
+            .ok_or_else(damaged)?;
+        // A streamed file's unusable normals, repaired as its importer
+        // repairs them, from every triangle around their vertices.
+        if let Primitives::Triangles(triangles) = &geometry.primitives {
+            repair_normals(&mut normals, &geometry.positions, triangles);
+        }
+        geometry.normals = Some(normals);
     }
     drop(ids);
     let own_vertices = own.iter().filter(|&&o| o).count() as u64;

@@ -3,7 +3,9 @@
 //!
 //! 1. **vertices**: every instance of every mesh is placed and written to
 //!    files under the temporary folder, read back through maps by index
-//!    ([`vertices`]); the meshes' own memory goes.
+//!    ([`vertices`]); the meshes' own memory goes. A PLY file is read as a
+//!    stream, a batch of vertices or faces at a time; other files are
+//!    read whole by their importers first.
 //! 2. **count**: the vertices are counted in the grid's cells, which are
 //!    cut into chunks as a cloud's are.
 //! 3. **spread**: each triangle goes to the chunk of each of its corners
@@ -34,21 +36,20 @@ use super::{Budget, OutOfCoreStats, checkpoint, io_error, join};
 use crate::BuildError;
 use crate::page_writer::SpilledFile;
 use crate::progress::Progress;
-use crate::scene::Scene;
 use crate::spheres::BuildOptions;
 
-pub(crate) use vertices::Channels;
+pub(crate) use vertices::{Channels, MeshInput};
 
-/// Builds the triangle meshes of `scenes` in chunks under `temp`.
+/// Builds the triangle meshes of `inputs` in chunks under `temp`.
 pub(crate) fn build(
-    scenes: Vec<Scene>,
+    inputs: Vec<MeshInput>,
     budget: &Budget,
     options: &BuildOptions,
     temp: &TempDir,
     progress: &dyn Progress,
 ) -> Result<(SpilledFile, OutOfCoreStats), BuildError> {
-    let colors = Channels::of(&scenes).colors;
-    let (sized, figures) = size(scenes, budget, temp, progress)?;
+    let colors = Channels::of(&inputs).colors;
+    let (sized, figures) = size(inputs, budget, temp, progress)?;
     let layout = NodeLayout {
         normals: true,
         color: colors,
@@ -91,21 +92,21 @@ pub(crate) struct Figures {
 
 /// Runs the phases up to the chunks' leaves (written under `temp`).
 pub(crate) fn size(
-    scenes: Vec<Scene>,
+    inputs: Vec<MeshInput>,
     budget: &Budget,
     temp: &TempDir,
     progress: &dyn Progress,
 ) -> Result<(Sized, Figures), BuildError> {
     let started = Instant::now();
-    let channels = Channels::of(&scenes);
-    let files = vertices::write(scenes, channels, temp, progress)?;
+    let channels = Channels::of(&inputs);
+    let files = vertices::write(inputs, channels, temp, progress)?;
     if files.vertices == 0 {
         return Err(BuildError::Empty);
     }
 
     // Count. The bounds were measured as the vertices were written; no
     // cell can hold more than u32::MAX of them, as no mesh can.
-    let (spread_buffers, chunk_points) = chunk_size(budget, files.vertices);
+    let (spread_buffers, chunk_points) = chunk_size(budget, files.vertices, false);
     let grid = Grid::new(files.bounds, files.vertices, chunk_points);
     let grid_side = grid.side();
     progress.begin("count", files.vertices);

@@ -6,6 +6,7 @@ use super::super::chunk::read_leaves;
 use super::super::temp::TempDir;
 use super::super::tests::{assert_alike, scratch};
 use super::super::{Budget, Job};
+use super::MeshInput;
 use crate::progress::Silent;
 use crate::scene::{Geometry, Instance, Primitives, Scene};
 use crate::spheres::leaves::{Leaf, make_leaves, unpack_normal};
@@ -54,7 +55,13 @@ fn budget(memory: u64, tmp: &std::path::Path) -> Budget {
 /// Every chunk's leaves, in chunk order, and how many chunks had some.
 fn chunk_leaves(scene: Scene, tmp: &std::path::Path) -> (Vec<Leaf>, usize) {
     let temp = TempDir::create(tmp).unwrap();
-    let (sized, _) = super::size(vec![scene], &budget(0, tmp), &temp, &Silent).unwrap();
+    let (sized, _) = super::size(
+        vec![MeshInput::Scene(scene)],
+        &budget(0, tmp),
+        &temp,
+        &Silent,
+    )
+    .unwrap();
     let mut leaves = Vec::new();
     for e in &sized.entries {
         leaves.extend(read_leaves(&e.leaves).unwrap());
@@ -141,7 +148,7 @@ fn one_chunk_is_the_in_memory_build_byte_for_byte() {
     let (expected, _) = build_spheres(scene.clone(), &BuildOptions::default()).unwrap();
     let job = Job {
         sources: Vec::new(),
-        meshes: vec![scene],
+        meshes: vec![MeshInput::Scene(scene)],
         budget: budget(1 << 30, &tmp),
         names: Vec::new(),
     };
@@ -162,7 +169,7 @@ fn many_chunks_make_a_file_like_the_in_memory_one() {
     let (expected, _) = build_spheres(scene.clone(), &BuildOptions::default()).unwrap();
     let job = Job {
         sources: Vec::new(),
-        meshes: vec![scene],
+        meshes: vec![MeshInput::Scene(scene)],
         budget: budget(0, &tmp),
         names: Vec::new(),
     };
@@ -174,4 +181,102 @@ fn many_chunks_make_a_file_like_the_in_memory_one() {
     let h = farfield_protocol::paged_file::read_image(&image).unwrap();
     assert_alike(&h.header, &expected.header);
     assert!(std::fs::read_dir(&tmp).unwrap().next().is_none());
+}
+
+/// `g` as a PLY file (binary little-endian, or ASCII): double positions,
+/// float normals, byte colors, and its triangles as faces.
+fn ply_bytes(g: &Geometry, ascii: bool) -> Vec<u8> {
+    let Primitives::Triangles(triangles) = &g.primitives else {
+        panic!("a mesh");
+    };
+    let normals = g.normals.as_ref().expect("normals");
+    let colors = g.colors.as_ref().expect("colors");
+    let format = if ascii {
+        "ascii"
+    } else {
+        "binary_little_endian"
+    };
+    let mut out = format!(
+        "ply\nformat {format} 1.0\nelement vertex {}\nproperty double x\nproperty double y\nproperty double z\nproperty float nx\nproperty float ny\nproperty float nz\nproperty uchar red\nproperty uchar green\nproperty uchar blue\nelement face {}\nproperty list uchar int vertex_indices\nend_header\n",
+        g.positions.len(),
+        triangles.len()
+    )
+    .into_bytes();
+    for ((p, n), c) in g.positions.iter().zip(normals).zip(colors) {
+        if ascii {
+            let line = format!(
+                "{} {} {} {} {} {} {} {} {}\n",
+                p.x, p.y, p.z, n.x, n.y, n.z, c[0], c[1], c[2]
+            );
+            out.extend_from_slice(line.as_bytes());
+        } else {
+            for v in p.to_array() {
+                out.extend_from_slice(&v.to_le_bytes());
+            }
+            for v in n.to_array() {
+                out.extend_from_slice(&v.to_le_bytes());
+            }
+            out.extend_from_slice(c);
+        }
+    }
+    for t in triangles {
+        if ascii {
+            out.extend_from_slice(format!("3 {} {} {}\n", t[0], t[1], t[2]).as_bytes());
+        } else {
+            out.push(3);
+            for v in t {
+                out.extend_from_slice(&(*v as i32).to_le_bytes());
+            }
+        }
+    }
+    out
+}
+
+/// A PLY mesh is read as a stream, a batch at a time, and its leaves are
+/// its in-memory import's: normals made unit alike, and those of no
+/// length (here every 97th) repaired from the triangles around them,
+/// across chunk borders too.
+#[test]
+fn a_streamed_ply_mesh_has_the_leaves_of_its_import() {
+    let tmp = scratch("mesh-ply");
+    // More vertices than a batch (65,536), so batches meet mid-element.
+    let mut g = wavy(300, 5);
+    let mut rnd = crate::test_random(6);
+    g.normals = Some(
+        (0..g.positions.len())
+            .map(|i| {
+                if i % 97 == 0 {
+                    glam::Vec3::ZERO
+                } else {
+                    glam::Vec3::new(rnd() as f32 - 0.5, rnd() as f32 - 0.5, 2.0)
+                }
+            })
+            .collect(),
+    );
+    for ascii in [false, true] {
+        let name = if ascii { "ascii.ply" } else { "binary.ply" };
+        let path = tmp.join(name);
+        std::fs::write(&path, ply_bytes(&g, ascii)).unwrap();
+        let imported =
+            crate::import::load_input(path.to_str().unwrap(), &Default::default()).unwrap();
+        let (expected, _) = make_leaves(imported, true, &Silent);
+        let info = crate::import::ply::survey(&path).unwrap();
+        assert!(info.triangles && info.normals && info.colors);
+        let spill = tmp.join("spill");
+        let temp = TempDir::create(&spill).unwrap();
+        let input = MeshInput::Ply {
+            path: path.clone(),
+            info,
+        };
+        let (sized, _) = super::size(vec![input], &budget(0, &spill), &temp, &Silent).unwrap();
+        assert!(sized.entries.len() >= 20, "{} chunks", sized.entries.len());
+        let mut leaves = Vec::new();
+        for e in &sized.entries {
+            leaves.extend(read_leaves(&e.leaves).unwrap());
+        }
+        let (a, b) = (by_position(leaves), by_position(expected));
+        assert_eq!(a.len(), b.len(), "{name}");
+        let differ = a.iter().zip(&b).filter(|(x, y)| x != y).count();
+        assert_eq!(differ, 0, "{name}: {differ} of {} leaves differ", a.len());
+    }
 }

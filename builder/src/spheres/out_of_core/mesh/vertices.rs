@@ -10,14 +10,19 @@
 
 use std::fs::File;
 use std::io::{self, BufReader, BufWriter, Read, Write};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use glam::{DAffine3, DVec3, Vec3};
 use memmap2::Mmap;
 
+use crate::import::ImportError;
+use crate::import::ply::{self, BodyOut, PlyInfo, Vertices};
+
 use super::super::io_error;
 use super::super::temp::TempDir;
 use crate::BuildError;
+use crate::import::common::unit_normal;
+use crate::import::{is_buildable, unbuildable};
 use crate::progress::Progress;
 use crate::scene::{Primitives, Rgb8, Scene};
 use crate::spheres::leaves::DEFAULT_COLOR;
@@ -41,6 +46,26 @@ pub(crate) struct MeshFiles {
     pub(crate) bounds: (DVec3, DVec3),
 }
 
+/// A mesh input of an out-of-core build.
+#[derive(Debug)]
+pub(crate) enum MeshInput {
+    /// Meshes in memory (generated, or read whole by their importer),
+    /// placed by their instances.
+    Scene(Scene),
+    /// A PLY mesh, read as a stream.
+    Ply { path: PathBuf, info: PlyInfo },
+}
+
+impl MeshInput {
+    /// Vertices, every instance counted.
+    pub(crate) fn vertices(&self) -> u64 {
+        match self {
+            Self::Scene(scene) => scene.instanced_vertex_count(),
+            Self::Ply { info, .. } => info.vertices,
+        }
+    }
+}
+
 /// What the build carries besides positions, decided over every mesh.
 #[derive(Debug, Clone, Copy)]
 pub(crate) struct Channels {
@@ -51,25 +76,39 @@ pub(crate) struct Channels {
 }
 
 impl Channels {
-    pub(crate) fn of(scenes: &[Scene]) -> Self {
-        let geometries = || scenes.iter().flat_map(|s| &s.geometries);
-        Self {
-            colors: geometries().any(|g| g.colors.is_some()),
-            normals: geometries().all(|g| g.normals.is_some()),
+    pub(crate) fn of(inputs: &[MeshInput]) -> Self {
+        let mut channels = Self {
+            colors: false,
+            normals: true,
+        };
+        for input in inputs {
+            match input {
+                MeshInput::Scene(scene) => {
+                    for g in &scene.geometries {
+                        channels.colors |= g.colors.is_some();
+                        channels.normals &= g.normals.is_some();
+                    }
+                }
+                MeshInput::Ply { info, .. } => {
+                    channels.colors |= info.colors;
+                    channels.normals &= info.normals;
+                }
+            }
         }
+        channels
     }
 }
 
-/// Writes every instance of every mesh of `scenes`, placed, under `temp`,
-/// consuming them (each scene is dropped once written); the unit of
-/// `progress` is a vertex.
+/// Writes every mesh of `inputs` (each instance placed) under `temp`,
+/// consuming them (each is dropped once written); the unit of `progress`
+/// is a vertex.
 pub(crate) fn write(
-    scenes: Vec<Scene>,
+    inputs: Vec<MeshInput>,
     channels: Channels,
     temp: &TempDir,
     progress: &dyn Progress,
 ) -> Result<MeshFiles, BuildError> {
-    let total: u64 = scenes.iter().map(Scene::instanced_vertex_count).sum();
+    let total: u64 = inputs.iter().map(MeshInput::vertices).sum();
     if total > u64::from(u32::MAX) {
         return Err(BuildError::TooLarge(total));
     }
@@ -91,48 +130,37 @@ pub(crate) fn write(
         colors: channels.colors.then(|| create(&paths[1])).transpose()?,
         normals: channels.normals.then(|| create(&paths[2])).transpose()?,
         triangles: create(&paths[3])?,
+        vertices: 0,
+        triangle_count: 0,
+        bounds: (DVec3::INFINITY, DVec3::NEG_INFINITY),
     };
-    let mut base = 0u32;
-    let mut triangle_count = 0u64;
-    let mut bounds = (DVec3::INFINITY, DVec3::NEG_INFINITY);
-    for scene in scenes {
-        for instance in &scene.instances {
-            let g = &scene.geometries[instance.geometry];
-            let Primitives::Triangles(triangles) = &g.primitives else {
-                return Err(BuildError::Invalid(format!(
-                    "{}: not a triangle mesh, and only meshes are built this way",
-                    g.name
-                )));
-            };
-            let place = instance.world_from_local;
-            let normal_from_local = place.matrix3.inverse().transpose();
-            for (i, &local) in g.positions.iter().enumerate() {
-                let p = place.transform_point3(local);
-                if !p.is_finite() {
+    for input in inputs {
+        match input {
+            MeshInput::Scene(scene) => out.scene(&scene, progress)?,
+            MeshInput::Ply { path, info } => {
+                let base = out.vertices;
+                let mut sink = PlySink {
+                    out: &mut out,
+                    path: &path,
+                    base,
+                    triangles: Vec::new(),
+                    progress,
+                };
+                ply::stream(&path, &mut sink).map_err(|e| BuildError::Invalid(e.to_string()))?;
+                if out.vertices - base != info.vertices {
                     return Err(BuildError::Invalid(format!(
-                        "{}: vertex {i} has a coordinate that is not a finite number",
-                        g.name
+                        "{}: the file changed while it was being read",
+                        path.display()
                     )));
                 }
-                bounds = (bounds.0.min(p), bounds.1.max(p));
-                out.vertex(
-                    p,
-                    g.colors.as_ref().map_or(DEFAULT_COLOR, |c| c[i]),
-                    g.normals
-                        .as_ref()
-                        .map_or(Vec3::Z, |n| placed_normal(n[i], place, normal_from_local)),
-                )
-                .map_err(io_error)?;
             }
-            for t in triangles {
-                out.triangle(t.map(|v| base + v)).map_err(io_error)?;
-            }
-            triangle_count += triangles.len() as u64;
-            base += g.positions.len() as u32;
-            progress.advance(g.positions.len() as u64);
         }
     }
+    let (vertices, triangle_count, bounds) = (out.vertices, out.triangle_count, out.bounds);
     out.finish().map_err(io_error)?;
+    if triangle_count == 0 {
+        return Err(BuildError::Empty);
+    }
     let map = |path: &PathBuf| -> Result<Mmap, BuildError> {
         let file = File::open(path).map_err(io_error)?;
         // SAFETY: the file is this build's, in its locked temporary folder,
@@ -147,10 +175,66 @@ pub(crate) fn write(
         colors: channels.colors.then(|| map(&paths[1])).transpose()?,
         normals: channels.normals.then(|| map(&paths[2])).transpose()?,
         triangles: paths[3].clone(),
-        vertices: u64::from(base),
+        vertices,
         triangle_count,
         bounds,
     })
+}
+
+/// A PLY file's body written as it is read: its normals made unit as the
+/// importer makes them (unusable ones kept, and repaired in their chunk),
+/// its positions checked as the importer checks them.
+struct PlySink<'a> {
+    out: &'a mut Writers,
+    path: &'a Path,
+    /// The index of the file's first vertex among all the build's.
+    base: u64,
+    triangles: Vec<[u32; 3]>,
+    progress: &'a dyn Progress,
+}
+
+impl BodyOut for PlySink<'_> {
+    fn batch(&self) -> u64 {
+        1 << 16
+    }
+
+    fn vertices(&mut self, batch: Vertices) -> Result<(), ImportError> {
+        let Vertices {
+            positions,
+            normals,
+            colors,
+        } = batch;
+        for (i, &p) in positions.iter().enumerate() {
+            if !is_buildable(p) {
+                return Err(unbuildable(self.path, self.out.vertices - self.base, p));
+            }
+            let color = colors.as_ref().map_or(DEFAULT_COLOR, |c| c[i]);
+            let normal = normals
+                .as_ref()
+                .map_or(Vec3::Z, |n| unit_normal(n[i]).unwrap_or(n[i]));
+            self.out
+                .vertex(p, color, normal)
+                .map_err(|e| ImportError::io(Path::new("temporary files"), e))?;
+        }
+        self.progress.advance(positions.len() as u64);
+        Ok(())
+    }
+
+    fn triangles(&mut self) -> &mut Vec<[u32; 3]> {
+        &mut self.triangles
+    }
+
+    fn triangles_done(&mut self) -> Result<(), ImportError> {
+        // The importer checked each index against the file's vertex count,
+        // and the build's total against u32.
+        let base = self.base as u32;
+        for t in self.triangles.drain(..) {
+            self.out
+                .triangle(t.map(|v| base + v))
+                .map_err(|e| ImportError::io(Path::new("temporary files"), e))?;
+        }
+        Ok(())
+    }
 }
 
 /// An input normal placed as a normal is (by the inverse transpose), and
@@ -170,10 +254,53 @@ struct Writers {
     colors: Option<BufWriter<File>>,
     normals: Option<BufWriter<File>>,
     triangles: BufWriter<File>,
+    /// Vertices and triangles written, and the vertices' bounds.
+    vertices: u64,
+    triangle_count: u64,
+    bounds: (DVec3, DVec3),
 }
 
 impl Writers {
+    /// Writes every instance of every mesh of `scene`, placed.
+    fn scene(&mut self, scene: &Scene, progress: &dyn Progress) -> Result<(), BuildError> {
+        for instance in &scene.instances {
+            let g = &scene.geometries[instance.geometry];
+            let Primitives::Triangles(triangles) = &g.primitives else {
+                return Err(BuildError::Invalid(format!(
+                    "{}: not a triangle mesh, and only meshes are built this way",
+                    g.name
+                )));
+            };
+            let place = instance.world_from_local;
+            let normal_from_local = place.matrix3.inverse().transpose();
+            let base = self.vertices as u32;
+            for (i, &local) in g.positions.iter().enumerate() {
+                let p = place.transform_point3(local);
+                if !is_buildable(p) {
+                    return Err(BuildError::Invalid(
+                        unbuildable(Path::new(&g.name), i as u64, p).to_string(),
+                    ));
+                }
+                self.vertex(
+                    p,
+                    g.colors.as_ref().map_or(DEFAULT_COLOR, |c| c[i]),
+                    g.normals
+                        .as_ref()
+                        .map_or(Vec3::Z, |n| placed_normal(n[i], place, normal_from_local)),
+                )
+                .map_err(io_error)?;
+            }
+            for t in triangles {
+                self.triangle(t.map(|v| base + v)).map_err(io_error)?;
+            }
+            progress.advance(g.positions.len() as u64);
+        }
+        Ok(())
+    }
+
     fn vertex(&mut self, p: DVec3, color: Rgb8, normal: Vec3) -> io::Result<()> {
+        self.vertices += 1;
+        self.bounds = (self.bounds.0.min(p), self.bounds.1.max(p));
         for v in p.to_array() {
             self.positions.write_all(&v.to_le_bytes())?;
         }
@@ -189,6 +316,7 @@ impl Writers {
     }
 
     fn triangle(&mut self, t: [u32; 3]) -> io::Result<()> {
+        self.triangle_count += 1;
         for v in t {
             self.triangles.write_all(&v.to_le_bytes())?;
         }
