@@ -27,11 +27,14 @@ use crate::panel::{self, Settings};
 use crate::pick::pick_splat;
 use crate::refine::{CutState, Refinement};
 use crate::rig::{CameraRig, Orbit};
-use crate::status::{Connection, Status};
+use crate::status::{Connection, FrameClock, Status};
 
 /// Time a frame may spend verifying and inserting arrived pages; the rest
 /// wait for the next frame, so a burst never stalls the picture.
 const PAGE_BUDGET: std::time::Duration = std::time::Duration::from_millis(4);
+
+/// How long [`AppOptions::notice`] shows.
+const NOTICE_FOR: std::time::Duration = std::time::Duration::from_secs(10);
 
 /// How long a viewer's session keeps trying to reach a server it has never
 /// reached (its `first_connect_grace`): as long as someone looks, since
@@ -53,6 +56,9 @@ pub struct AppOptions {
     pub flight_seconds: Option<f64>,
     /// Join this demo session at start, presenting or following.
     pub demo: Option<DemoRole>,
+    /// Said to the user for a while after start (what was ignored of a
+    /// damaged link).
+    pub notice: Option<String>,
 }
 
 impl Default for AppOptions {
@@ -63,6 +69,7 @@ impl Default for AppOptions {
             show_panel: true,
             flight_seconds: None,
             demo: None,
+            notice: None,
         }
     }
 }
@@ -89,6 +96,11 @@ pub trait Platform {
     }
     /// A scripted flight ([`AppOptions::flight_seconds`]) ended.
     fn flight_done(&mut self, _report: &FlightReport, _ctx: &egui::Context) {}
+    /// The session ended before the scene's header came (an unknown scene,
+    /// a refused token, a server never reached): there is nothing to show
+    /// and it will not come. A window closes and its command fails with
+    /// `message`; a page leaves the message on screen (the default).
+    fn session_failed(&mut self, _message: &str, _ctx: &egui::Context) {}
 }
 
 /// What a screenshot shows.
@@ -128,6 +140,13 @@ pub struct ViewerApp {
     flight: Option<Flight>,
     /// The demo session this viewer presents or follows.
     demo: Demo,
+    /// The session's end was told to the platform.
+    ended: bool,
+    clock: FrameClock,
+    /// The last frame asked for the next at once.
+    busy: bool,
+    /// [`AppOptions::notice`], and since when it shows.
+    notice: Option<(String, Instant)>,
 }
 
 impl std::fmt::Debug for ViewerApp {
@@ -190,6 +209,7 @@ impl ViewerApp {
         let refine = Refinement::new(s.threshold, s.target_frame_ms, s.node_budget);
         let flight = options.flight_seconds.map(Flight::new);
         let demo = Demo::starting(options.demo.as_ref());
+        let notice = options.notice.clone().map(|n| (n, Instant::now()));
         let status = Status {
             adapter: renderer.adapter_description(),
             ..Status::default()
@@ -213,14 +233,24 @@ impl ViewerApp {
             screenshots: Arc::default(),
             flight,
             demo,
+            ended: false,
+            clock: FrameClock::default(),
+            busy: true,
+            notice,
         })
     }
 
     /// Takes what arrived, inserting pages for at most [`PAGE_BUDGET`] a
-    /// frame; a session that ended is shown, not fatal.
-    fn pump(&mut self) {
+    /// frame. A session that ended is shown, and what is here stays; one
+    /// that ended before the scene came is told to the platform.
+    fn pump(&mut self, ctx: &egui::Context) {
         if let Err(e) = self.viewer.pump_for(PAGE_BUDGET) {
-            self.status.error = Some(format!("{e:#}"));
+            let message = format!("{e:#}");
+            if !self.ended && self.viewer.header().is_none() {
+                self.ended = true;
+                self.platform.session_failed(&message, ctx);
+            }
+            self.status.error = Some(message);
         }
     }
 
@@ -404,15 +434,12 @@ impl ViewerApp {
     /// Refreshes the status the panel shows and the platform reads.
     fn update_status(&mut self, dt: f64) {
         let st = &mut self.status;
-        if dt > 0.0 {
-            let fps = 1.0 / dt;
-            st.fps = if st.fps == 0.0 {
-                fps
-            } else {
-                st.fps * 0.9 + fps * 0.1
-            };
-        }
-        st.frame_ms = dt * 1e3;
+        // `busy` is still the last frame's: whether it asked for this one.
+        self.clock.frame(dt, self.busy);
+        st.frame_ms = self.clock.ms();
+        st.fps = self.clock.fps();
+        st.at_rest = !self.busy;
+        st.notice = self.notice.as_ref().map(|(text, _)| text.clone());
         let stats = self.viewer.stats();
         st.mb_received = stats.bytes_received as f64 / 1e6;
         st.in_flight_pages = self.viewer.outstanding();
@@ -451,7 +478,7 @@ impl eframe::App for ViewerApp {
         let frame_s = now.duration_since(self.last_frame).as_secs_f64();
         let dt = frame_s.min(0.25);
         self.last_frame = now;
-        self.pump();
+        self.pump(ui.ctx());
         if let Some(role) = self.options.demo.take() {
             let join = DemoActions {
                 join: Some(role),
@@ -493,7 +520,16 @@ impl eframe::App for ViewerApp {
         let rect = ui.available_rect_before_wrap();
         self.scene(ui, rect, frame, frame_s, dt);
         self.update_status(frame_s);
-        if let Some(message) = self.status.error.clone().or_else(|| self.waiting_message()) {
+        if let Some(message) = self
+            .status
+            .error
+            .clone()
+            .or_else(|| self.waiting_message())
+            .or_else(|| {
+                let (text, since) = self.notice.as_ref()?;
+                (since.elapsed() < NOTICE_FOR).then(|| text.clone())
+            })
+        {
             egui::Area::new(egui::Id::unique("farfield message"))
                 .anchor(egui::Align2::CENTER_BOTTOM, Vec2::new(0.0, -16.0))
                 .show(ui.ctx(), |ui| {
@@ -525,6 +561,7 @@ impl eframe::App for ViewerApp {
             || self.flight.is_some()
             || self.viewer.pending_pages() > 0
             || self.rig.as_ref().is_some_and(|r| !r.at_rest());
+        self.busy = busy;
         if busy {
             ui.ctx().request_repaint();
         } else {

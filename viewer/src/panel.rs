@@ -122,7 +122,7 @@ pub fn show(
                     ui.monospace(value);
                     ui.end_row();
                 };
-                row("frame", format!("{:.1} ms, {:.0} fps", status.frame_ms, status.fps));
+                row("frame", crate::status::frame_line(status));
                 row("scene draw", format!("{:.1} ms", status.draw_ms));
                 row("threshold", format!("{:.3}", status.threshold));
                 row("nodes drawn", status.nodes_drawn.to_string());

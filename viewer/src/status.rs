@@ -31,10 +31,17 @@ impl Connection {
 /// One frame's report.
 #[derive(Debug, Clone, Default, Serialize)]
 pub struct Status {
-    /// Time between this frame and the last, milliseconds.
+    /// Time between frames drawn one after another, milliseconds,
+    /// smoothed (see [`FrameClock`]).
     pub frame_ms: f64,
-    /// Frames per second, smoothed.
+    /// Frames per second: `1000 / frame_ms`, the same measure.
     pub fps: f64,
+    /// Nothing changes on screen: the viewer draws no frame until
+    /// something does (input, a page, the network).
+    pub at_rest: bool,
+    /// A notice for the user (what of a damaged link was ignored), shown
+    /// on screen for a while after start.
+    pub notice: Option<String>,
     /// Traversal, upload and draw of the scene, milliseconds.
     pub draw_ms: f64,
     /// The threshold the frame was drawn with (pixels, or eps for cubes).
@@ -64,4 +71,91 @@ pub struct Status {
     pub camera: Option<CameraSpec>,
     #[serde(skip)]
     pub(crate) reset_requested: bool,
+}
+
+/// The frame time the panel shows, from the gaps between frames drawn one
+/// after another. A frame that follows a rest (the viewer drew nothing
+/// until something changed) ends no frame time: a gap of seconds there is
+/// the user's pause, not the frame rate, and showing it beside the
+/// smoothed rate made lines like "6479.4 ms, 7 fps".
+#[derive(Debug, Clone, Copy, Default)]
+pub struct FrameClock {
+    /// Smoothed milliseconds between frames; 0 before the first.
+    ms: f64,
+}
+
+impl FrameClock {
+    /// A frame drawn `dt` seconds after the last; `continuous`: the last
+    /// frame asked for this one at once (it was not at rest).
+    pub fn frame(&mut self, dt: f64, continuous: bool) {
+        if !(continuous && dt > 0.0 && dt.is_finite()) {
+            return;
+        }
+        let ms = dt * 1e3;
+        self.ms = if self.ms == 0.0 {
+            ms
+        } else {
+            self.ms * 0.9 + ms * 0.1
+        };
+    }
+
+    pub fn ms(&self) -> f64 {
+        self.ms
+    }
+
+    pub fn fps(&self) -> f64 {
+        if self.ms > 0.0 { 1e3 / self.ms } else { 0.0 }
+    }
+}
+
+/// The panel's frame line: one measure, as a time and as a rate, or that
+/// nothing is being drawn.
+pub fn frame_line(status: &Status) -> String {
+    if status.at_rest {
+        "at rest".into()
+    } else if status.frame_ms > 0.0 {
+        format!("{:.1} ms ({:.0} fps)", status.frame_ms, status.fps)
+    } else {
+        "-".into()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_frame_line_is_one_measure_and_a_pause_is_not_a_frame() {
+        let mut clock = FrameClock::default();
+        for _ in 0..50 {
+            clock.frame(0.020, true);
+        }
+        // Six seconds at rest, then a frame: not a frame time.
+        clock.frame(6.4794, false);
+        assert!((clock.ms() - 20.0).abs() < 1e-9, "{}", clock.ms());
+        for dt in [0.016, 0.050, 0.033] {
+            clock.frame(dt, true);
+            assert!((clock.ms() * clock.fps() - 1e3).abs() < 1e-6);
+        }
+        let status = Status {
+            frame_ms: clock.ms(),
+            fps: clock.fps(),
+            ..Status::default()
+        };
+        let line = frame_line(&status);
+        let (ms, fps): (f64, f64) = {
+            let mut words = line.split(|c: char| !(c.is_ascii_digit() || c == '.'));
+            let mut numbers = words
+                .by_ref()
+                .filter(|w| !w.is_empty())
+                .map(|w| w.parse().unwrap());
+            (numbers.next().unwrap(), numbers.next().unwrap())
+        };
+        assert!((ms * fps - 1e3).abs() / 1e3 < 0.05, "{line}");
+        let resting = Status {
+            at_rest: true,
+            ..status
+        };
+        assert_eq!(frame_line(&resting), "at rest");
+    }
 }

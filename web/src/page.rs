@@ -38,7 +38,12 @@ pub async fn start(canvas_id: String) -> Result<(), JsValue> {
         .unwrap_or_default();
     let query = query::parse(&location.search()?)?;
     let mut options = query.options;
-    options.camera = parse_fragment(&location.hash()?)?;
+    // A damaged link opens the default view and says what was ignored.
+    let hash = location.hash()?;
+    match parse_fragment(&hash) {
+        Ok(camera) => options.camera = camera,
+        Err(e) => options.notice = Some(format!("the link's camera ({hash}) was ignored: {e}")),
+    }
     let canvas = window
         .document()
         .ok_or("no document")?

@@ -9,6 +9,7 @@
 //! closes the window.
 
 use std::path::PathBuf;
+use std::sync::{Arc, Mutex};
 
 use anyhow::Context;
 use farfield_client::camera_spec::CameraSpec;
@@ -75,10 +76,13 @@ pub fn run(job: ViewJob) -> anyhow::Result<()> {
         show_panel: job.show_panel,
         flight_seconds: job.flight_seconds,
         demo: job.demo,
+        notice: None,
     };
+    let failed: Arc<Mutex<Option<String>>> = Arc::default();
     let window = Window {
         save_to: job.screenshot_when_refined,
         was_refined: false,
+        failed: failed.clone(),
     };
     eframe::run_native(
         &title,
@@ -89,16 +93,32 @@ pub fn run(job: ViewJob) -> anyhow::Result<()> {
         }),
     )
     .map_err(|e| anyhow::anyhow!("{e}"))
-    .context("opening the viewer's window")
+    .context("opening the viewer's window")?;
+    match failed.lock().ok().and_then(|mut f| f.take()) {
+        Some(message) => {
+            let what = title.trim_start_matches("farfield · ");
+            Err(anyhow::anyhow!("{message}")).context(format!("{what}: no scene to show"))
+        }
+        None => Ok(()),
+    }
 }
 
 /// The window's side of the viewer.
 struct Window {
     save_to: Option<PathBuf>,
     was_refined: bool,
+    /// Why the session ended before the scene came; the command then fails.
+    failed: Arc<Mutex<Option<String>>>,
 }
 
 impl Platform for Window {
+    fn session_failed(&mut self, message: &str, ctx: &eframe::egui::Context) {
+        if let Ok(mut failed) = self.failed.lock() {
+            *failed = Some(message.to_owned());
+        }
+        ctx.send_viewport_cmd(eframe::egui::ViewportCommand::Close);
+    }
+
     fn wants_screenshot(&mut self, status: &Status) -> Shot {
         let newly = status.refined && !self.was_refined;
         self.was_refined = status.refined;

@@ -280,6 +280,36 @@ fn a_browser_without_webgpu_or_webgl2_is_told_so() {
     rt.block_on(server.shutdown()).unwrap();
 }
 
+/// A damaged link opens the scene at its default view, refined, and says
+/// what it ignored (it used to stop the viewer: a black page).
+#[test]
+fn a_damaged_link_opens_the_default_view_and_says_what_was_ignored() {
+    let _one = ONE_BROWSER.lock().unwrap_or_else(|e| e.into_inner());
+    let Some((dir, _, web)) = setup("viewer-damaged-link") else {
+        return;
+    };
+    let rt = runtime();
+    let server = rt.block_on(serve(&dir, &web, "127.0.0.1:0".parse().unwrap()));
+    let browser = Browser::start(SIZE.0, SIZE.1);
+    browser.goto(&format!(
+        "http://{}/view/bunny?panel=0#eye=1,2&target=x",
+        server.local_addr()
+    ));
+    browser.wait_for("refined at the default view", REFINED, REPORT, WAIT);
+    let notice = status(&browser)["notice"]
+        .as_str()
+        .unwrap_or_default()
+        .to_owned();
+    assert!(
+        notice.contains("was ignored") && notice.contains("eye=1,2"),
+        "{notice:?}"
+    );
+    let (_, _, shot) = browser.canvas_pixels();
+    assert!(lit(&shot) > 2000, "the default view shows the bunny");
+    drop(browser);
+    rt.block_on(server.shutdown()).unwrap();
+}
+
 /// Waits for the view to be refined at a camera other than `previous`'s
 /// (the page's address); returns the new address.
 fn refined_away_from(browser: &Browser, previous: &str, what: &str) -> String {

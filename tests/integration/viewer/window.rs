@@ -218,6 +218,64 @@ fn the_window_draws_plp_on_the_budget_it_was_given() {
     rows.check(&shown, SIZE, "the window");
 }
 
+/// A scene the server does not have: the window closes by itself and the
+/// command fails, saying why (it used to wait, "connecting", for ever).
+#[test]
+fn an_unknown_scene_ends_the_window_viewer_with_a_message() {
+    let Some(xvfb) = start_xvfb() else {
+        return missing("the window test needs Xvfb (apt-get install xvfb)");
+    };
+    let dir = scratch("viewer-window-unknown");
+    let rt = crate::streaming::runtime();
+    let server = rt.block_on(farfield_memory_server::start(
+        farfield_memory_server::ServerConfig::new(&dir, "127.0.0.1:0".parse().unwrap()),
+    ));
+    let server = server.expect("server starts");
+    let args = [
+        "view",
+        "--server",
+        &format!("http://{}", server.local_addr()),
+        "--scene",
+        "no-such-scene",
+        "--size",
+        "320x240",
+    ]
+    .join("\t");
+    let mut child = farfield_tests::child_test("viewer::window::view_child")
+        .env(CHILD_ENV, args)
+        .env("DISPLAY", xvfb.display())
+        .env_remove("WAYLAND_DISPLAY")
+        .env(
+            farfield_render::DEVICE_SELECT_OFF.0,
+            farfield_render::DEVICE_SELECT_OFF.1,
+        )
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("spawn the viewer");
+    let started = Instant::now();
+    let status = loop {
+        if let Some(status) = child.try_wait().unwrap() {
+            break status;
+        }
+        if started.elapsed() > WAIT {
+            let _ = child.kill();
+            panic!("the viewer of an unknown scene still runs after {WAIT:?}");
+        }
+        std::thread::sleep(Duration::from_millis(100));
+    };
+    let output = child.wait_with_output().unwrap();
+    let said = String::from_utf8_lossy(&output.stderr).into_owned()
+        + &String::from_utf8_lossy(&output.stdout);
+    assert!(!status.success(), "the viewer exited with success: {said}");
+    assert!(
+        said.contains("no-such-scene") && said.contains("no scene to show"),
+        "the viewer did not say why: {said}"
+    );
+    eprintln!("exited after {:?}", started.elapsed());
+    rt.block_on(server.shutdown()).unwrap();
+}
+
 /// The child: `farfield` with the arguments in [`CHILD_ENV`], in-process.
 #[test]
 #[ignore = "subprocess entry point: run by its parent test"]
