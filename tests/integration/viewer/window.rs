@@ -21,6 +21,20 @@ const CHILD_ENV: &str = "FARFIELD_VIEW_CHILD_ARGS";
 const SIZE: (u32, u32) = (320, 240);
 const WAIT: Duration = Duration::from_secs(90);
 
+/// `farfield ARGS` (tab-separated) in a child on `display`, not started.
+fn viewer_command(display: &str, args: &str) -> Command {
+    let mut command = farfield_tests::child_test("viewer::window::view_child");
+    command
+        .env(CHILD_ENV, args)
+        .env("DISPLAY", display)
+        .env_remove("WAYLAND_DISPLAY")
+        .env(
+            farfield_render::DEVICE_SELECT_OFF.0,
+            farfield_render::DEVICE_SELECT_OFF.1,
+        );
+    command
+}
+
 /// The viewer's process, killed when dropped.
 struct ViewerProcess {
     child: Child,
@@ -37,14 +51,7 @@ impl Drop for ViewerProcess {
 impl ViewerProcess {
     /// `farfield ARGS` (tab-separated) in a child on `display`.
     fn spawn(display: &str, args: &str) -> Self {
-        let mut child = farfield_tests::child_test("viewer::window::view_child")
-            .env(CHILD_ENV, args)
-            .env("DISPLAY", display)
-            .env_remove("WAYLAND_DISPLAY")
-            .env(
-                farfield_render::DEVICE_SELECT_OFF.0,
-                farfield_render::DEVICE_SELECT_OFF.1,
-            )
+        let mut child = viewer_command(display, args)
             .stdout(Stdio::piped())
             .stderr(Stdio::inherit())
             .spawn()
@@ -241,14 +248,7 @@ fn an_unknown_scene_ends_the_window_viewer_with_a_message() {
         "320x240",
     ]
     .join("\t");
-    let mut child = farfield_tests::child_test("viewer::window::view_child")
-        .env(CHILD_ENV, args)
-        .env("DISPLAY", xvfb.display())
-        .env_remove("WAYLAND_DISPLAY")
-        .env(
-            farfield_render::DEVICE_SELECT_OFF.0,
-            farfield_render::DEVICE_SELECT_OFF.1,
-        )
+    let mut child = viewer_command(xvfb.display(), &args)
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())
         .spawn()
