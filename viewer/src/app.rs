@@ -88,6 +88,10 @@ pub trait Platform {
     /// A screenshot the user (or [`Self::wants_screenshot`]) asked for:
     /// RGBA rows, top first.
     fn screenshot(&mut self, width: u32, height: u32, rgba: Vec<u8>);
+    /// A script pressed the screenshot button (a page's `screenshot()`).
+    fn screenshot_asked(&mut self) -> bool {
+        false
+    }
     /// Takes the screenshot the user asked for itself, when the platform
     /// has a better way (a page reads its canvas); `false` leaves it to
     /// the app ([`Shot::Scene`]).
@@ -490,6 +494,7 @@ impl eframe::App for ViewerApp {
         if ui.input(|i| i.key_pressed(egui::Key::Tab)) {
             self.show_panel = !self.show_panel;
         }
+        let mut screenshot = self.platform.screenshot_asked();
         if self.show_panel {
             let before = self.options.settings.clone();
             let action = panel::show(ui, &self.status, &mut self.options.settings, &mut self.demo);
@@ -499,9 +504,7 @@ impl eframe::App for ViewerApp {
                 self.refine = Refinement::new(s.threshold, s.target_frame_ms, s.node_budget);
                 self.viewer.set_cache_bytes(s.cache_bytes());
             }
-            if action.screenshot && !self.platform.screenshot_itself() {
-                self.request_shot(ui.ctx(), Shot::Scene);
-            }
+            screenshot |= action.screenshot;
             self.status.reset_requested |= action.reset;
             self.show_panel &= !action.hide;
         } else if ui.input(|i| {
@@ -516,6 +519,9 @@ impl eframe::App for ViewerApp {
                 .show(ui.ctx(), |ui| ui.button("☰ panel").clicked())
                 .inner;
             self.show_panel |= shown;
+        }
+        if screenshot && !self.platform.screenshot_itself() {
+            self.request_shot(ui.ctx(), Shot::Scene);
         }
         let rect = ui.available_rect_before_wrap();
         self.scene(ui, rect, frame, frame_s, dt);

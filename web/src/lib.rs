@@ -22,4 +22,4 @@ mod page;
 mod query;
 
 #[cfg(target_arch = "wasm32")]
-pub use page::{capture_canvas, start, wasm_memory_bytes};
+pub use page::{capture_canvas, screenshot, start, wasm_memory_bytes};

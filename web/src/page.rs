@@ -77,6 +77,7 @@ pub async fn start(canvas_id: String) -> Result<(), JsValue> {
         canvas: canvas.clone(),
         title: scene.clone(),
         drew: false,
+        gl: false,
     };
     eframe::WebRunner::new()
         .start(
@@ -94,6 +95,16 @@ pub async fn start(canvas_id: String) -> Result<(), JsValue> {
 thread_local! {
     /// A script asked for the canvas's pixels ([`capture_canvas`]).
     static CAPTURE_ASKED: Cell<bool> = const { Cell::new(false) };
+    /// A script pressed the screenshot button ([`screenshot`]).
+    static SCREENSHOT_ASKED: Cell<bool> = const { Cell::new(false) };
+}
+
+/// Takes the screenshot the panel's button takes: the PNG is offered as a
+/// download and left, as a data URL, in the canvas's `data-screenshot`
+/// attribute (what the browser tests read).
+#[wasm_bindgen]
+pub fn screenshot() {
+    SCREENSHOT_ASKED.with(|c| c.set(true));
 }
 
 /// Asks for the canvas's pixels as the next frame draws them (panel and
@@ -124,6 +135,8 @@ struct WebPage {
     title: String,
     /// Whether the first image has been reported.
     drew: bool,
+    /// Drawn with WebGL (the adapter's backend is GL).
+    gl: bool,
 }
 
 impl WebPage {
@@ -156,6 +169,7 @@ impl Platform for WebPage {
     }
 
     fn status(&mut self, status: &Status) {
+        self.gl = status.adapter.contains(" / Gl");
         let data = self.canvas.dataset();
         if !self.drew && status.nodes_drawn > 0 {
             // Since the navigation began (HTML, wasm, GPU, stream, frame):
@@ -184,9 +198,23 @@ impl Platform for WebPage {
         }
     }
 
+    fn screenshot_asked(&mut self) -> bool {
+        SCREENSHOT_ASKED.with(|c| c.replace(false))
+    }
+
     fn screenshot_itself(&mut self) -> bool {
+        // On WebGL the app reads the scene's texture back instead
+        // (`Shot::Scene`): a click runs the app's frame in the browser's
+        // event handler, before the canvas is drawn, and a read of the
+        // canvas found it cleared (an all-transparent file). On WebGPU
+        // reading a texture back fails in Chromium, and the canvas holds
+        // its picture.
+        if self.gl {
+            return false;
+        }
         let name = format!("{}.png", self.title);
-        self.after_this_frame(move |_, url| {
+        self.after_this_frame(move |canvas, url| {
+            let _ = canvas.dataset().set("screenshot", &url);
             let _ = download(&url, &name);
         });
         true
@@ -196,11 +224,12 @@ impl Platform for WebPage {
         let Ok(png) = farfield_image::encode_png(width, height, &rgba) else {
             return;
         };
-        let data = base64::engine::general_purpose::STANDARD.encode(&png);
-        let _ = download(
-            &format!("data:image/png;base64,{data}"),
-            &format!("{}.png", self.title),
+        let url = format!(
+            "data:image/png;base64,{}",
+            base64::engine::general_purpose::STANDARD.encode(&png)
         );
+        let _ = self.canvas.dataset().set("screenshot", &url);
+        let _ = download(&url, &format!("{}.png", self.title));
     }
 }
 

@@ -140,6 +140,31 @@ fn the_browser_shows_the_headless_image_on_webgpu_and_webgl_and_refines_after_a_
             .unwrap_or_default()
             .to_owned();
         assert!(used.contains(adapter), "{backend}: drawn on {used:?}");
+        // A script's screenshot (`farfield.screenshot()`, the button's) is
+        // the picture, opaque.
+        browser.eval(
+            "delete document.getElementById('farfield').dataset.screenshot; \
+             window.farfield.screenshot(); return null",
+        );
+        browser.wait_for(
+            &format!("{backend}: the screenshot"),
+            "return !!document.getElementById('farfield').dataset.screenshot",
+            REPORT,
+            WAIT,
+        );
+        let (w, h, shot) = browser.data_png("screenshot");
+        assert_eq!((w, h), SIZE, "{backend}: the screenshot's size");
+        let clear = shot.chunks(4).filter(|p| p[3] != 255).count();
+        assert_eq!(
+            clear, 0,
+            "{backend}: {clear} pixels of the screenshot are not opaque"
+        );
+        let db = psnr(&first, &shot, SIZE.0, SIZE.1);
+        assert!(
+            lit(&shot) > 2000 && db >= 30.0,
+            "{backend}: the screenshot is not the picture ({} lit, {db:.1} dB)",
+            lit(&shot)
+        );
         if backend == "webgpu" {
             browser.drag((160, 120), (90, 30), 10);
             let moved = format!(
@@ -276,6 +301,47 @@ fn a_browser_without_webgpu_or_webgl2_is_told_so() {
         text.contains("the scenes this server has"),
         "a link back: {text}"
     );
+    drop(browser);
+    rt.block_on(server.shutdown()).unwrap();
+}
+
+/// The panel's screenshot button saves the picture on WebGPU and on WebGL
+/// (on WebGL its file was all transparent: the click's frame ran before
+/// the canvas was drawn). The button is clicked where an 800x600 page
+/// shows it.
+#[test]
+fn the_screenshot_button_saves_the_picture_on_webgpu_and_webgl() {
+    const BUTTON: (i64, i64) = (120, 541);
+    let _one = ONE_BROWSER.lock().unwrap_or_else(|e| e.into_inner());
+    let Some((dir, _, web)) = setup("viewer-screenshot") else {
+        return;
+    };
+    let rt = runtime();
+    let server = rt.block_on(serve(&dir, &web, "127.0.0.1:0".parse().unwrap()));
+    let browser = Browser::start(800, 600);
+    for backend in ["webgpu", "webgl"] {
+        browser.goto(&format!(
+            "http://{}/view/bunny?backend={backend}#{START}",
+            server.local_addr()
+        ));
+        browser.wait_for(backend, REFINED, REPORT, WAIT);
+        browser.eval("delete document.getElementById('farfield').dataset.screenshot; return null");
+        browser.click(BUTTON.0, BUTTON.1);
+        browser.wait_for(
+            &format!("{backend}: the screenshot"),
+            "return !!document.getElementById('farfield').dataset.screenshot",
+            REPORT,
+            WAIT,
+        );
+        let (_, _, shot) = browser.data_png("screenshot");
+        let clear = shot.chunks(4).filter(|p| p[3] != 255).count();
+        assert_eq!(clear, 0, "{backend}: {clear} pixels are not opaque");
+        assert!(
+            lit(&shot) > 5000,
+            "{backend}: the screenshot is empty ({} lit pixels)",
+            lit(&shot)
+        );
+    }
     drop(browser);
     rt.block_on(server.shutdown()).unwrap();
 }

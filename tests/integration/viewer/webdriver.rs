@@ -279,6 +279,16 @@ impl Browser {
         decode_png(v["value"].as_str().expect("base64 PNG"))
     }
 
+    /// The PNG data URL in the viewer canvas's `data-NAME` attribute:
+    /// (width, height, RGBA).
+    pub(crate) fn data_png(&self, name: &str) -> (u32, u32, Vec<u8>) {
+        let url = self.eval(&format!(
+            "return document.getElementById('farfield').dataset.{name}"
+        ));
+        let url = url.as_str().unwrap_or_default();
+        decode_png(url.split_once(',').map_or(url, |(_, b64)| b64))
+    }
+
     /// The viewer's canvas as it drew its last frame (`farfield.capture_canvas()`,
     /// a PNG data URL): (width, height, RGBA).
     pub(crate) fn canvas_pixels(&self) -> (u32, u32, Vec<u8>) {
