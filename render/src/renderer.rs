@@ -240,6 +240,11 @@ impl Renderer {
         self.output.size()
     }
 
+    /// The largest frame side the device allows.
+    pub fn max_side(&self) -> u32 {
+        self.gpu.device.limits().max_texture_dimension_2d
+    }
+
     /// Changes the frame size, clamped to 1 pixel and to the adapter's
     /// largest texture (a camera of another size is then refused by
     /// [`Self::render`]).

@@ -74,6 +74,21 @@ impl Default for AppOptions {
     }
 }
 
+/// A frame of `width` x `height` pixels, scaled down (keeping its shape)
+/// so that neither side passes `max_side`, the device's largest texture:
+/// a window larger than that is drawn at the largest size and stretched,
+/// not refused.
+pub(crate) fn fit_within(width: f32, height: f32, max_side: u32) -> (u32, u32) {
+    let longest = width.max(height);
+    let scale = if longest > max_side as f32 {
+        max_side as f32 / longest
+    } else {
+        1.0
+    };
+    let side = |v: f32| ((v * scale).floor() as u32).clamp(1, max_side.max(1));
+    (side(width), side(height))
+}
+
 /// What differs between a window and a browser page.
 pub trait Platform {
     /// The camera came to rest here (a page writes it into its URL).
@@ -286,9 +301,11 @@ impl ViewerApp {
     ) {
         let response = ui.allocate_rect(rect, Sense::click_and_drag());
         let ppp = ui.ctx().pixels_per_point();
-        let (width, height) = (
-            (rect.width() * ppp).round().max(1.0) as u32,
-            (rect.height() * ppp).round().max(1.0) as u32,
+        let max_side = self.renderer.as_ref().map_or(u32::MAX, Renderer::max_side);
+        let (width, height) = fit_within(
+            (rect.width() * ppp).round().max(1.0),
+            (rect.height() * ppp).round().max(1.0),
+            max_side,
         );
         let input = read_input(ui, &response, rect, &mut self.flying);
         let flying = self.flying;

@@ -125,6 +125,17 @@ mod tests {
     use super::*;
 
     #[test]
+    fn frames_larger_than_the_device_allows_keep_their_shape_within_it() {
+        use crate::app::fit_within;
+        assert_eq!(fit_within(800.0, 600.0, 8192), (800, 600));
+        assert_eq!(fit_within(9000.0, 9000.0, 8192), (8192, 8192));
+        let (w, h) = fit_within(16000.0, 4000.0, 8192);
+        assert_eq!(w, 8192);
+        assert!((f64::from(w) / f64::from(h) - 4.0).abs() < 0.01, "{w}x{h}");
+        assert_eq!(fit_within(0.0, 0.0, 8192), (1, 1));
+    }
+
+    #[test]
     fn the_frame_line_is_one_measure_and_a_pause_is_not_a_frame() {
         let mut clock = FrameClock::default();
         for _ in 0..50 {

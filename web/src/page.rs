@@ -18,6 +18,10 @@ use web_sys::HtmlCanvasElement;
 
 use crate::query::{self, Backend};
 
+/// The most pixels on a side of the canvas: the largest texture every
+/// WebGPU device draws (its `maxTextureDimension2D` is at least this).
+const MAX_CANVAS_SIDE: u32 = 8192;
+
 /// Starts the viewer of the scene this page's path names on the canvas
 /// with id `canvas_id`. Fails (a rejected promise, which the page shows)
 /// when the address is bad or the browser can draw with neither WebGPU
@@ -50,6 +54,13 @@ pub async fn start(canvas_id: String) -> Result<(), JsValue> {
         .get_element_by_id(&canvas_id)
         .ok_or_else(|| format!("no element #{canvas_id}"))?
         .dyn_into::<HtmlCanvasElement>()?;
+
+    // The canvas's pixels are the surface's: no more on a side than a
+    // WebGPU device allows at least (a larger window panicked the page).
+    let most = (f64::from(MAX_CANVAS_SIDE) / window.device_pixel_ratio().max(1.0)).floor();
+    let style = canvas.style();
+    style.set_property("max-width", &format!("{most}px"))?;
+    style.set_property("max-height", &format!("{most}px"))?;
 
     let session = SessionOptions {
         token: query.token,

@@ -60,7 +60,10 @@ pub fn run(job: ViewJob) -> anyhow::Result<()> {
     let native = eframe::NativeOptions {
         viewport: eframe::egui::ViewportBuilder::default()
             .with_title(&title)
-            .with_inner_size([w as f32, h as f32]),
+            .with_inner_size([w as f32, h as f32])
+            // The surface is a texture: no larger than a device draws
+            // (8192 is wgpu's default limit; past it the window went black).
+            .with_max_inner_size([8192.0, 8192.0]),
         dithering: false,
         // Tests run the viewer on a thread of their own.
         #[cfg(target_os = "linux")]

@@ -346,6 +346,42 @@ fn the_screenshot_button_saves_the_picture_on_webgpu_and_webgl() {
     rt.block_on(server.shutdown()).unwrap();
 }
 
+/// A window larger than the device's largest texture (9000 x 9000 against
+/// WebGPU's 8192) draws the scene on a canvas held within that size, with
+/// no GPU error (it used to show nothing but the error, or panic).
+#[test]
+fn a_9000_pixel_window_draws_within_the_devices_limits() {
+    let _one = ONE_BROWSER.lock().unwrap_or_else(|e| e.into_inner());
+    let Some((dir, _, web)) = setup("viewer-huge") else {
+        return;
+    };
+    let rt = runtime();
+    let server = rt.block_on(serve(&dir, &web, "127.0.0.1:0".parse().unwrap()));
+    let browser = Browser::start(9000, 9000);
+    for backend in ["webgpu", "webgl"] {
+        browser.goto(&format!(
+            "http://{}/view/bunny?panel=0&backend={backend}",
+            server.local_addr()
+        ));
+        let drawn = "const s = JSON.parse(document.getElementById('farfield').dataset.status || '{}'); \
+                     return s.nodes_drawn > 0 || !!s.error";
+        browser.wait_for(&format!("{backend}: a first image"), drawn, REPORT, WAIT);
+        let s = status(&browser);
+        assert!(s["error"].is_null(), "{backend}: {}", s["error"]);
+        assert!(s["nodes_drawn"].as_u64().unwrap_or(0) > 0, "{backend}: {s}");
+        let side = browser.eval(
+            "const c = document.getElementById('farfield'); return Math.max(c.width, c.height)",
+        );
+        let side = side.as_u64().unwrap_or(u64::MAX);
+        assert!(
+            (1000..=8192).contains(&side),
+            "{backend}: a canvas of {side} pixels"
+        );
+    }
+    drop(browser);
+    rt.block_on(server.shutdown()).unwrap();
+}
+
 /// A damaged link opens the scene at its default view, refined, and says
 /// what it ignored (it used to stop the viewer: a black page).
 #[test]
