@@ -103,6 +103,10 @@ pub trait Platform {
     /// A screenshot the user (or [`Self::wants_screenshot`]) asked for:
     /// RGBA rows, top first.
     fn screenshot(&mut self, width: u32, height: u32, rgba: Vec<u8>);
+    /// The GPU device was lost (`message` says how): nothing is drawn any
+    /// more. A page drawing with WebGPU starts again on WebGL2; a window
+    /// shows the message (the default).
+    fn device_lost(&mut self, _message: &str) {}
     /// A script pressed the screenshot button (a page's `screenshot()`).
     fn screenshot_asked(&mut self) -> bool {
         false
@@ -166,6 +170,10 @@ pub struct ViewerApp {
     busy: bool,
     /// [`AppOptions::notice`], and since when it shows.
     notice: Option<(String, Instant)>,
+    /// The GPU device was lost: nothing is drawn any more.
+    lost: Arc<std::sync::atomic::AtomicBool>,
+    /// The loss was told to the platform.
+    lost_told: bool,
 }
 
 impl std::fmt::Debug for ViewerApp {
@@ -197,6 +205,7 @@ impl ViewerApp {
             .as_ref()
             .ok_or_else(|| anyhow::anyhow!("the viewer needs eframe's wgpu renderer"))?;
         let gpu_error: Arc<Mutex<Option<String>>> = Arc::default();
+        let lost: Arc<std::sync::atomic::AtomicBool> = Arc::default();
         {
             let gpu_error = gpu_error.clone();
             state.device.on_uncaptured_error(Arc::new(move |e| {
@@ -208,10 +217,12 @@ impl ViewerApp {
         }
         {
             let gpu_error = gpu_error.clone();
+            let lost = lost.clone();
             state
                 .device
                 .set_device_lost_callback(move |reason, message| {
                     tracing::error!("GPU device lost ({reason:?}): {message}");
+                    lost.store(true, std::sync::atomic::Ordering::Relaxed);
                     if let Ok(mut slot) = gpu_error.lock() {
                         *slot = Some(format!("the GPU device was lost ({reason:?}): {message}"));
                     }
@@ -256,6 +267,8 @@ impl ViewerApp {
             clock: FrameClock::default(),
             busy: true,
             notice,
+            lost,
+            lost_told: false,
         })
     }
 
@@ -469,8 +482,11 @@ impl ViewerApp {
             .viewer
             .hierarchy()
             .map_or(0.0, |h| h.resident_bytes() as f64 / 1e6);
+        // A lost device draws nothing: the view is not refined, whatever
+        // the cut says.
+        let lost = self.lost.load(std::sync::atomic::Ordering::Relaxed);
         st.progress = self.refine.progress();
-        st.refined = self.refine.refined();
+        st.refined = self.refine.refined() && !lost;
         st.connection = if !self.viewer.is_streamed() {
             Connection::File
         } else if self.viewer.is_connected() {
@@ -485,6 +501,11 @@ impl ViewerApp {
             && let Some(e) = e.take()
         {
             st.error = Some(format!("GPU: {e}"));
+        }
+        if lost && !self.lost_told {
+            self.lost_told = true;
+            let message = st.error.clone().unwrap_or_default();
+            self.platform.device_lost(&message);
         }
         if let Some(rig) = &self.rig {
             st.camera = Some(rig.shown().spec());

@@ -88,7 +88,7 @@ pub async fn start(canvas_id: String) -> Result<(), JsValue> {
         canvas: canvas.clone(),
         title: scene.clone(),
         drew: false,
-        gl: false,
+        gl: query.backend == Backend::WebGl,
     };
     eframe::WebRunner::new()
         .start(
@@ -209,6 +209,14 @@ impl Platform for WebPage {
         }
     }
 
+    fn device_lost(&mut self, _message: &str) {
+        if !self.gl {
+            // Started again on WebGL2, at the same place (the link keeps
+            // the camera); the message is the new page's notice.
+            let _ = start_again_on_webgl();
+        }
+    }
+
     fn screenshot_asked(&mut self) -> bool {
         SCREENSHOT_ASKED.with(|c| c.replace(false))
     }
@@ -242,6 +250,20 @@ impl Platform for WebPage {
         let _ = self.canvas.dataset().set("screenshot", &url);
         let _ = download(&url, &format!("{}.png", self.title));
     }
+}
+
+/// Loads this page again with `backend=webgl` (and the other options
+/// kept), saying why.
+fn start_again_on_webgl() -> Result<(), JsValue> {
+    let location = web_sys::window().ok_or("no window")?.location();
+    let params = web_sys::UrlSearchParams::new_with_str(&location.search()?)?;
+    if params.get("fallback").is_some() {
+        // Started again once already: no loop of reloads.
+        return Ok(());
+    }
+    params.set("backend", "webgl");
+    params.set("fallback", query::WEBGPU_LOST);
+    location.set_search(&String::from(params.to_string()))
 }
 
 /// Offers the data URL `url` to the user as a file named `name`.

@@ -1,11 +1,16 @@
 //! The viewer's options from the page's query string:
 //! `?panel=0&backend=webgl&kernel=round&threshold=2&budget=N&plp_budget=P&plp_budget_ms=MS&epsilon_px=E&outlines=1&cache_mib=M&access_token=T`,
 //! `flight=SECONDS` (the benchmark's scripted flight), and
-//! `session=NAME&role=follow|present` (a demo session).
+//! `session=NAME&role=follow|present` (a demo session), and
+//! `fallback=webgpu-lost` (set by the page itself: see [`WEBGPU_LOST`]).
 
 use farfield_render::Kernel;
 use farfield_viewer::AppOptions;
 use web_sys::UrlSearchParams;
+
+/// `fallback=` of a page started again on WebGL2 after WebGPU's device
+/// was lost.
+pub const WEBGPU_LOST: &str = "webgpu-lost";
 
 /// Which of the browser's graphics APIs to use.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -75,6 +80,9 @@ pub fn parse(search: &str) -> Result<Query, String> {
             Some(other) => return Err(format!("role={other} is not follow or present")),
         };
         options.demo = Some(farfield_client::render_job::DemoRole { session, present });
+    }
+    if params.get("fallback").as_deref() == Some(WEBGPU_LOST) {
+        options.notice = Some("WebGPU's device was lost: drawing with WebGL2 instead".to_owned());
     }
     let backend = match params.get("backend").as_deref() {
         None | Some("auto") | Some("webgpu") => Backend::Auto,

@@ -17,7 +17,7 @@ use farfield_memory_server::{RunningServer, ServerConfig, start};
 use farfield_tests::scratch;
 use serde_json::Value;
 
-use super::webdriver::Browser;
+use super::webdriver::{Browser, Graphics};
 use super::{PlpRows, bunny_in, camera_of_fragment, have, lit, missing, psnr, reference};
 use crate::streaming::runtime;
 
@@ -382,6 +382,49 @@ fn a_9000_pixel_window_draws_within_the_devices_limits() {
     rt.block_on(server.shutdown()).unwrap();
 }
 
+/// A browser whose WebGPU device is lost once drawing starts (Chromium on
+/// SwiftShader without the Vulkan flags): the page starts again on WebGL2
+/// at the same camera and says why (it used to show nothing and report
+/// itself refined).
+#[test]
+fn a_lost_webgpu_device_starts_the_page_again_on_webgl2() {
+    let _one = ONE_BROWSER.lock().unwrap_or_else(|e| e.into_inner());
+    let Some((dir, _, web)) = setup("viewer-device-lost") else {
+        return;
+    };
+    let rt = runtime();
+    let server = rt.block_on(serve(&dir, &web, "127.0.0.1:0".parse().unwrap()));
+    let browser = Browser::with(SIZE.0, SIZE.1, Graphics::LosesWebGpu);
+    browser.goto(&format!(
+        "http://{}/view/bunny?panel=0#{START}",
+        server.local_addr()
+    ));
+    let on_webgl = "return location.search.includes('backend=webgl') \
+                    && document.getElementById('farfield').dataset.refined === 'true'";
+    browser.wait_for("refined on WebGL2", on_webgl, REPORT, WAIT);
+    let s = status(&browser);
+    let adapter = s["adapter"].as_str().unwrap_or_default();
+    assert!(adapter.contains(" / Gl"), "drawn on {adapter:?}");
+    assert!(s["error"].is_null(), "{}", s["error"]);
+    let notice = s["notice"].as_str().unwrap_or_default();
+    assert!(notice.contains("WebGPU's device was lost"), "{notice:?}");
+    // The notice is on the picture for a while: the bunny is there, at
+    // the link's camera.
+    let drawn = s["nodes_drawn"].as_u64().unwrap_or(0);
+    assert!(drawn > 1000, "the bunny is drawn: {drawn} nodes");
+    let (_, _, shot) = browser.canvas_pixels();
+    assert!(lit(&shot) > 2000, "the canvas shows the bunny");
+    let hash = browser.eval("return location.hash");
+    let hash = hash.as_str().unwrap_or_default();
+    assert_eq!(
+        camera_of_fragment(hash),
+        camera_of_fragment(START),
+        "the same camera"
+    );
+    drop(browser);
+    rt.block_on(server.shutdown()).unwrap();
+}
+
 /// A damaged link opens the scene at its default view, refined, and says
 /// what it ignored (it used to stop the viewer: a black page).
 #[test]
@@ -405,6 +448,11 @@ fn a_damaged_link_opens_the_default_view_and_says_what_was_ignored() {
     assert!(
         notice.contains("was ignored") && notice.contains("eye=1,2"),
         "{notice:?}"
+    );
+    let drawn = status(&browser)["nodes_drawn"].as_u64().unwrap_or(0);
+    assert!(
+        drawn > 1000,
+        "the default view draws the bunny: {drawn} nodes"
     );
     let (_, _, shot) = browser.canvas_pixels();
     assert!(lit(&shot) > 2000, "the default view shows the bunny");

@@ -51,6 +51,18 @@ fn free_port() -> u16 {
         .expect("a free port")
 }
 
+/// What a test's browser can draw with.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Graphics {
+    /// WebGPU and WebGL2, on SwiftShader.
+    Full,
+    /// Neither.
+    None,
+    /// WebGPU whose device is lost once drawing starts (SwiftShader
+    /// without the Vulkan flags), and WebGL2.
+    LosesWebGpu,
+}
+
 impl Browser {
     /// Starts chromedriver and a headless chromium whose viewport is
     /// `width` x `height` CSS pixels at one device pixel each, with a
@@ -62,6 +74,16 @@ impl Browser {
     /// [`Self::start`], or, with `graphics` false, a browser that has
     /// neither WebGPU nor WebGL.
     pub(crate) fn with_graphics(width: u32, height: u32, graphics: bool) -> Self {
+        let graphics = if graphics {
+            Graphics::Full
+        } else {
+            Graphics::None
+        };
+        Self::with(width, height, graphics)
+    }
+
+    /// [`Self::start`] with the graphics `graphics`.
+    pub(crate) fn with(width: u32, height: u32, graphics: Graphics) -> Self {
         let port = free_port();
         let (quiet, on) = farfield_render::DEVICE_SELECT_OFF;
         let driver = Command::new("chromedriver")
@@ -96,7 +118,11 @@ impl Browser {
             "--use-vulkan=swiftshader",
         ];
         let none = ["--disable-3d-apis", "--disable-features=WebGPU"];
-        let graphics_args = if graphics { &gpu[..] } else { &none[..] };
+        let graphics_args = match graphics {
+            Graphics::Full => &gpu[..],
+            Graphics::None => &none[..],
+            Graphics::LosesWebGpu => &gpu[..2],
+        };
         let args = [
             "--headless=new".to_owned(),
             "--no-sandbox".to_owned(),
