@@ -184,12 +184,16 @@ pub const KINDS: &[Registered] = &[
 
 /// The traversal for a file of `kind`.
 pub fn for_hierarchy(kind: HierarchyKind) -> Box<dyn Traversal> {
+    (registered_for(kind).make)()
+}
+
+/// The kind a file of `kind` is drawn with.
+pub fn registered_for(kind: HierarchyKind) -> &'static Registered {
     // Every hierarchy kind has a registered traversal (a test checks).
-    let registered = KINDS
+    KINDS
         .iter()
         .find(|k| k.hierarchy == kind)
-        .unwrap_or(&KINDS[0]);
-    (registered.make)()
+        .unwrap_or(&KINDS[0])
 }
 
 /// The kind named `name` (`--mode`), if any.

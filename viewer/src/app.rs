@@ -535,7 +535,18 @@ impl eframe::App for ViewerApp {
         let mut screenshot = self.platform.screenshot_asked();
         if self.show_panel {
             let before = self.options.settings.clone();
-            let action = panel::show(ui, &self.status, &mut self.options.settings, &mut self.demo);
+            let params = self
+                .viewer
+                .header()
+                .map(|h| farfield_traverse::registered_for(h.kind).params);
+            let controls = panel::Controls::of(params);
+            let action = panel::show(
+                ui,
+                &self.status,
+                controls,
+                &mut self.options.settings,
+                &mut self.demo,
+            );
             self.demo.act(&mut self.viewer, &action.demo);
             let s = &self.options.settings;
             if *s != before {

@@ -102,117 +102,277 @@ pub struct Actions {
     pub reset: bool,
     pub hide: bool,
     pub demo: crate::demo_panel::DemoActions,
+    /// Where the panel is on screen, and its row of buttons (scrolled
+    /// with it).
+    pub panel: Option<egui::Rect>,
+    pub buttons: Option<egui::Rect>,
 }
 
-/// Shows the panel on the left of `ui`.
+/// Which of the panel's controls a scene's kind reads, from the settings
+/// its traversal names (`farfield_traverse::Registered::params`); `None`
+/// (no scene yet) shows none of them.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct Controls {
+    /// Square or round splats.
+    pub kernel: bool,
+    /// The threshold (splat size, or the cubes' eps).
+    pub threshold: bool,
+    /// The cubes' coverage.
+    pub coverage: bool,
+    /// PLP's budgets.
+    pub plp: bool,
+    /// Image caching's ε and outlines.
+    pub epsilon: bool,
+}
+
+impl Controls {
+    pub fn of(params: Option<&[&str]>) -> Self {
+        let has = |name: &str| params.is_some_and(|p| p.contains(&name));
+        Self {
+            kernel: has("kernel"),
+            threshold: has("threshold") || has("eps"),
+            coverage: has("coverage"),
+            plp: has("budget"),
+            epsilon: has("epsilon"),
+        }
+    }
+}
+
+/// The widest the panel gets: a share of a narrow screen (a phone's),
+/// so the scene stays in view beside it.
+fn panel_width(screen_width: f32) -> f32 {
+    (screen_width * 0.6).min(340.0)
+}
+
+/// Shows the panel on the left of `ui`: the status, then the settings
+/// `controls` names and the demo session, each folding, all scrolling when
+/// the window is too short for them.
 pub fn show(
     ui: &mut egui::Ui,
     status: &Status,
+    controls: Controls,
     settings: &mut Settings,
     demo: &mut crate::demo_panel::Demo,
 ) -> Actions {
     let mut actions = Actions::default();
-    egui::Panel::left("farfield panel")
+    let width = panel_width(ui.available_width());
+    let shown = egui::Panel::left("farfield panel")
         .resizable(false)
+        .exact_size(width)
         .show(ui, |ui| {
-            ui.heading("farfield");
-            egui::Grid::new("stats").num_columns(2).show(ui, |ui| {
-                let mut row = |name: &str, value: String| {
-                    ui.label(name);
-                    ui.monospace(value);
-                    ui.end_row();
-                };
-                row("frame", crate::status::frame_line(status));
-                row("scene draw", format!("{:.1} ms", status.draw_ms));
-                row("threshold", format!("{:.3}", status.threshold));
-                row("nodes drawn", status.nodes_drawn.to_string());
-                row(
-                    "pages resident",
-                    format!("{} ({:.1} MB)", status.resident_pages, status.resident_mb),
-                );
-                row("in flight", status.in_flight_pages.to_string());
-                row("wanted", status.wanted_pages.to_string());
-                row("received", format!("{:.1} MB", status.mb_received));
-                row("server", status.connection.label().to_owned());
-            });
-            let label = if status.refined {
-                "refined".to_owned()
-            } else {
-                format!("refining {:.1} %", status.progress * 100.0)
-            };
-            ui.add(egui::ProgressBar::new(status.progress as f32).text(label));
-            if let Some(e) = &status.last_error {
-                ui.small(format!("last error: {e}"));
-            }
-            ui.separator();
-            ui.horizontal(|ui| {
-                ui.label("splats");
-                ui.selectable_value(&mut settings.kernel, Kernel::Square, "square");
-                ui.selectable_value(&mut settings.kernel, Kernel::Round, "round");
-            });
-            ui.add(
-                egui::Slider::new(&mut settings.threshold, 0.0..=16.0)
-                    .text("threshold / eps (px)"),
-            );
-            ui.horizontal(|ui| {
-                ui.label("cube coverage");
-                let alpha = matches!(settings.coverage, Coverage::Alpha);
-                if ui.selectable_label(alpha, "alpha").clicked() {
-                    settings.coverage = Coverage::Alpha;
-                }
-                if ui.selectable_label(!alpha, "threshold").clicked() && alpha {
-                    settings.coverage = Coverage::Threshold(0.5);
-                }
-            });
-            if let Coverage::Threshold(t) = &mut settings.coverage {
-                ui.add(egui::Slider::new(t, 0.0..=1.0).text("coverage threshold"));
-            }
-            ui.add(
-                egui::Slider::new(&mut settings.node_budget, 0..=20_000_000)
-                    .logarithmic(true)
-                    .text("node budget (0: none)"),
-            );
-            ui.add(
-                egui::Slider::new(&mut settings.plp_budget_percent, 0.0..=100.0)
-                    .logarithmic(true)
-                    .text("PLP budget (% of triangles)"),
-            );
-            ui.add(
-                egui::Slider::new(&mut settings.plp_budget_ms, 0.0..=200.0)
-                    .text("PLP frame time (ms, 0: off)"),
-            );
-            ui.horizontal(|ui| {
-                ui.add(
-                    egui::Slider::new(&mut settings.epsilon_px, 0.0..=16.0)
-                        .text("image caches ε (px)"),
-                );
-                ui.checkbox(&mut settings.outline_caches, "outlines");
-            });
-            ui.add(
-                egui::Slider::new(&mut settings.target_frame_ms, 8.0..=200.0)
-                    .text("target frame (ms)"),
-            );
-            ui.add(
-                egui::Slider::new(&mut settings.cache_mib, 16..=8192)
-                    .logarithmic(true)
-                    .text("memory (MiB)"),
-            );
-            ui.separator();
-            actions.demo = demo.panel(ui);
-            ui.separator();
-            ui.horizontal(|ui| {
-                actions.reset = ui.button("reset (R)").clicked();
-                actions.screenshot = ui.button("screenshot").clicked();
-                actions.hide = ui.button("hide (Tab)").clicked();
-            });
-            ui.small("drag: orbit · right/shift drag: pan · wheel: zoom · F: fly (WASD, QE) · double-click: focus");
+            egui::ScrollArea::both()
+                .auto_shrink([false, false])
+                .show(ui, |ui| {
+                    ui.heading("farfield");
+                    stats(ui, status);
+                    ui.separator();
+                    egui::CollapsingHeader::new("view")
+                        .default_open(true)
+                        .show(ui, |ui| settings_ui(ui, controls, settings));
+                    egui::CollapsingHeader::new("demo")
+                        .default_open(true)
+                        .show(ui, |ui| actions.demo = demo.panel(ui));
+                    ui.separator();
+                    let row = ui.horizontal_wrapped(|ui| {
+                        actions.reset = ui.button("reset (R)").clicked();
+                        actions.screenshot = ui.button("screenshot").clicked();
+                        actions.hide = ui.button("hide (Tab)").clicked();
+                    });
+                    actions.buttons = Some(row.response.rect);
+                    ui.small("drag: orbit · right/shift drag: pan · wheel: zoom · F: fly (WASD, QE) · double-click: focus");
+                });
         });
+    actions.panel = Some(shown.response.rect);
     actions
+}
+
+/// The status lines and the progress bar.
+fn stats(ui: &mut egui::Ui, status: &Status) {
+    egui::Grid::new("stats").num_columns(2).show(ui, |ui| {
+        let mut row = |name: &str, value: String| {
+            ui.label(name);
+            ui.monospace(value);
+            ui.end_row();
+        };
+        row("frame", crate::status::frame_line(status));
+        row("scene draw", format!("{:.1} ms", status.draw_ms));
+        row("threshold", format!("{:.3}", status.threshold));
+        row("nodes drawn", status.nodes_drawn.to_string());
+        row(
+            "pages resident",
+            format!("{} ({:.1} MB)", status.resident_pages, status.resident_mb),
+        );
+        row("in flight", status.in_flight_pages.to_string());
+        row("wanted", status.wanted_pages.to_string());
+        row("received", format!("{:.1} MB", status.mb_received));
+        row("server", status.connection.label().to_owned());
+    });
+    let label = if status.refined {
+        "refined".to_owned()
+    } else {
+        format!("refining {:.1} %", status.progress * 100.0)
+    };
+    ui.add(egui::ProgressBar::new(status.progress as f32).text(label));
+    if let Some(e) = &status.last_error {
+        ui.small(format!("last error: {e}"));
+    }
+}
+
+/// The settings the scene's kind reads, then those every kind has.
+fn settings_ui(ui: &mut egui::Ui, controls: Controls, settings: &mut Settings) {
+    if controls.kernel {
+        ui.horizontal(|ui| {
+            ui.label("splats");
+            ui.selectable_value(&mut settings.kernel, Kernel::Square, "square");
+            ui.selectable_value(&mut settings.kernel, Kernel::Round, "round");
+        });
+    }
+    if controls.threshold {
+        ui.add(egui::Slider::new(&mut settings.threshold, 0.0..=16.0).text("threshold / eps (px)"));
+    }
+    if controls.coverage {
+        ui.horizontal(|ui| {
+            ui.label("cube coverage");
+            let alpha = matches!(settings.coverage, Coverage::Alpha);
+            if ui.selectable_label(alpha, "alpha").clicked() {
+                settings.coverage = Coverage::Alpha;
+            }
+            if ui.selectable_label(!alpha, "threshold").clicked() && alpha {
+                settings.coverage = Coverage::Threshold(0.5);
+            }
+        });
+        if let Coverage::Threshold(t) = &mut settings.coverage {
+            ui.add(egui::Slider::new(t, 0.0..=1.0).text("coverage threshold"));
+        }
+    }
+    if controls.plp {
+        ui.add(
+            egui::Slider::new(&mut settings.plp_budget_percent, 0.0..=100.0)
+                .logarithmic(true)
+                .text("PLP budget (% of triangles)"),
+        );
+        ui.add(
+            egui::Slider::new(&mut settings.plp_budget_ms, 0.0..=200.0)
+                .text("PLP frame time (ms, 0: off)"),
+        );
+    }
+    if controls.epsilon {
+        ui.add(egui::Slider::new(&mut settings.epsilon_px, 0.0..=16.0).text("image caches ε (px)"));
+        ui.checkbox(&mut settings.outline_caches, "outlines");
+    }
+    ui.add(
+        egui::Slider::new(&mut settings.node_budget, 0..=20_000_000)
+            .logarithmic(true)
+            .text("node budget (0: none)"),
+    );
+    ui.add(egui::Slider::new(&mut settings.target_frame_ms, 8.0..=200.0).text("target frame (ms)"));
+    ui.add(
+        egui::Slider::new(&mut settings.cache_mib, 16..=8192)
+            .logarithmic(true)
+            .text("memory (MiB)"),
+    );
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The panel in a headless egui of `width` x `height` points, after
+    /// `frames` frames with the mouse wheel turned down over it in each.
+    fn shown(width: f32, height: f32, frames: usize, wheel: f32) -> Actions {
+        let ctx = egui::Context::default();
+        let mut settings = Settings::default();
+        let mut demo = crate::demo_panel::Demo::starting(None);
+        let controls = Controls::of(Some(&["threshold", "kernel"]));
+        let mut last = Actions::default();
+        for frame in 0..frames {
+            let mut input = egui::RawInput {
+                screen_rect: Some(egui::Rect::from_min_size(
+                    egui::Pos2::ZERO,
+                    egui::vec2(width, height),
+                )),
+                predicted_dt: 1.0 / 30.0,
+                time: Some(frame as f64 / 30.0),
+                ..Default::default()
+            };
+            input
+                .events
+                .push(egui::Event::PointerMoved(egui::pos2(40.0, height / 2.0)));
+            if wheel != 0.0 {
+                input.events.push(egui::Event::MouseWheel {
+                    unit: egui::MouseWheelUnit::Point,
+                    delta: egui::vec2(0.0, -wheel),
+                    phase: egui::TouchPhase::Move,
+                    modifiers: egui::Modifiers::NONE,
+                    source: egui::MouseWheelSource::Unknown,
+                });
+            }
+            let _ = ctx.run_ui(input, |ui| {
+                last = show(ui, &Status::default(), controls, &mut settings, &mut demo);
+            });
+        }
+        last
+    }
+
+    #[test]
+    fn the_panel_leaves_a_phone_most_of_its_screen() {
+        let phone = shown(390.0, 844.0, 2, 0.0);
+        let width = phone.panel.unwrap().width();
+        assert!(
+            width <= 0.62 * 390.0,
+            "the panel is {width} of 390 points wide"
+        );
+        let desktop = shown(1280.0, 800.0, 2, 0.0).panel.unwrap().width();
+        assert!(desktop >= 300.0, "{desktop}");
+    }
+
+    #[test]
+    fn a_short_window_scrolls_the_panel_to_its_buttons() {
+        let height = 450.0;
+        let unscrolled = shown(800.0, height, 3, 0.0).buttons.unwrap();
+        assert!(
+            unscrolled.top() > height,
+            "the test needs a panel taller than the window: buttons at {unscrolled:?}"
+        );
+        let scrolled = shown(800.0, height, 60, 200.0).buttons.unwrap();
+        assert!(
+            scrolled.bottom() <= height && scrolled.top() >= 0.0,
+            "the buttons are out of reach: {scrolled:?} in a window {height} high"
+        );
+    }
+
+    #[test]
+    fn each_kind_shows_the_controls_it_reads() {
+        let spheres = Controls::of(Some(&["threshold", "kernel"]));
+        assert!(spheres.kernel && spheres.threshold);
+        assert!(!spheres.coverage && !spheres.plp && !spheres.epsilon);
+        let cubes = Controls::of(Some(&["eps", "coverage"]));
+        assert!(cubes.threshold && cubes.coverage && !cubes.kernel && !cubes.plp);
+        assert_eq!(
+            Controls::of(Some(&["budget"])),
+            Controls {
+                plp: true,
+                ..Controls::default()
+            }
+        );
+        assert_eq!(
+            Controls::of(Some(&["epsilon"])),
+            Controls {
+                epsilon: true,
+                ..Controls::default()
+            }
+        );
+        assert_eq!(Controls::of(None), Controls::default());
+        // Every kind the client draws shows at least one of its own.
+        for kind in farfield_traverse::KINDS {
+            assert_ne!(
+                Controls::of(Some(kind.params)),
+                Controls::default(),
+                "{}",
+                kind.name
+            );
+        }
+    }
     use farfield_client::frame_loop::FrameState;
     use farfield_traverse::Budget;
 

@@ -311,7 +311,7 @@ fn a_browser_without_webgpu_or_webgl2_is_told_so() {
 /// shows it.
 #[test]
 fn the_screenshot_button_saves_the_picture_on_webgpu_and_webgl() {
-    const BUTTON: (i64, i64) = (120, 541);
+    const BUTTON: (i64, i64) = (120, 486);
     let _one = ONE_BROWSER.lock().unwrap_or_else(|e| e.into_inner());
     let Some((dir, _, web)) = setup("viewer-screenshot") else {
         return;
