@@ -174,6 +174,19 @@ pub struct ViewerApp {
     lost: Arc<std::sync::atomic::AtomicBool>,
     /// The loss was told to the platform.
     lost_told: bool,
+    /// What the last frame drew.
+    drawn: Option<DrawnView>,
+}
+
+/// What a drawn frame showed (see [`ViewerApp::scene`]).
+#[derive(Debug, Clone, PartialEq)]
+struct DrawnView {
+    spec: CameraSpec,
+    size: (u32, u32),
+    settings: Settings,
+    threshold: f64,
+    pages: usize,
+    received: u64,
 }
 
 impl std::fmt::Debug for ViewerApp {
@@ -269,6 +282,7 @@ impl ViewerApp {
             notice,
             lost,
             lost_told: false,
+            drawn: None,
         })
     }
 
@@ -368,9 +382,27 @@ impl ViewerApp {
         ];
         self.demo.present(&mut self.viewer, &camera, shown_options);
 
+        // What the last drawn frame showed: when the view rests, refined,
+        // on the same pages, drawing it again would change nothing.
+        let view = DrawnView {
+            spec: rig.shown().spec(),
+            size: (width, height),
+            settings: self.options.settings.clone(),
+            threshold: self.refine.threshold(),
+            pages: self.viewer.hierarchy().map_or(0, |h| h.resident_pages()),
+            received: self.viewer.stats().bytes_received,
+        };
         let Some(renderer) = self.renderer.as_mut() else {
             return;
         };
+        if !moving
+            && self.status.refined
+            && !renderer.capture_pending()
+            && self.drawn.as_ref() == Some(&view)
+        {
+            self.show_texture(ui, rect, frame);
+            return;
+        }
         renderer.resize(width, height);
         let s = &self.options.settings;
         let style = SplatStyle {
@@ -414,6 +446,7 @@ impl ViewerApp {
                 }
                 self.refine.after_frame(moving, frame_ms, cut);
                 self.status.draw_ms = times.traverse_ms + times.upload_ms + times.draw_ms;
+                self.drawn = Some(view);
                 self.status.nodes_drawn = cut.drawn;
                 self.status.wanted_pages = missing;
             }
@@ -619,10 +652,17 @@ impl eframe::App for ViewerApp {
         self.busy = busy;
         if busy {
             ui.ctx().request_repaint();
-        } else {
-            // Nothing changes at rest but the network: look again soon.
+        } else if self.viewer.is_streamed() {
+            // Nothing changes at rest but the network: look again soon
+            // (the scene is not drawn again unless something came).
             ui.ctx()
                 .request_repaint_after(std::time::Duration::from_millis(250));
+        } else if let Some((_, since)) = &self.notice
+            && let Some(left) = NOTICE_FOR.checked_sub(since.elapsed())
+        {
+            // A file at rest draws nothing until input comes, but the
+            // notice goes when its time is up.
+            ui.ctx().request_repaint_after(left);
         }
     }
 

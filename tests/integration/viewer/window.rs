@@ -225,6 +225,55 @@ fn the_window_draws_plp_on_the_budget_it_was_given() {
     rows.check(&shown, SIZE, "the window");
 }
 
+/// A window at rest, refined, on a file draws nothing: under 2 % of a
+/// core over 10 s (it drew the unchanged view four times a second, about
+/// a quarter of a core here).
+#[test]
+fn a_window_at_rest_uses_almost_no_cpu() {
+    let Some(xvfb) = start_xvfb() else {
+        return missing("the window test needs Xvfb (apt-get install xvfb)");
+    };
+    let dir = scratch("viewer-window-idle");
+    let Some(bunny) = bunny_in(&dir) else {
+        return;
+    };
+    let png = dir.join("window.png");
+    let args = [
+        "view",
+        "--file",
+        bunny.to_str().unwrap(),
+        "--size",
+        "320x240",
+        "--screenshot-when-refined",
+        png.to_str().unwrap(),
+    ]
+    .join("\t");
+    let mut viewer = ViewerProcess::spawn(xvfb.display(), &args);
+    viewer.refined();
+    // The screenshot's frame, and the panel settling after it.
+    std::thread::sleep(Duration::from_secs(2));
+    let ticks = || -> u64 {
+        let stat = std::fs::read_to_string(format!("/proc/{}/stat", viewer.child.id())).unwrap();
+        // utime and stime, fields 14 and 15, after the name in parentheses.
+        let fields: Vec<&str> = stat
+            .rsplit_once(')')
+            .unwrap()
+            .1
+            .split_whitespace()
+            .collect();
+        fields[11].parse::<u64>().unwrap() + fields[12].parse::<u64>().unwrap()
+    };
+    let before = ticks();
+    std::thread::sleep(Duration::from_secs(10));
+    let used = ticks() - before;
+    // Ticks are hundredths of a second: 2 % of a core over 10 s is 20.
+    eprintln!("at rest: {used} ticks in 10 s");
+    assert!(
+        used < 20,
+        "the window at rest used {used} hundredths of a second in 10 s"
+    );
+}
+
 /// A scene the server does not have: the window closes by itself and the
 /// command fails, saying why (it used to wait, "connecting", for ever).
 #[test]
