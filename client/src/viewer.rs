@@ -128,6 +128,16 @@ impl Viewer {
         self.hierarchy.as_ref().map(|h| &h.header)
     }
 
+    /// Has `waker` called whenever the session has something to pump, so
+    /// an owner at rest need not poll; `false` for a file, or a transport
+    /// that cannot.
+    pub fn set_waker(&mut self, waker: impl Fn() + Send + Sync + 'static) -> bool {
+        let waker = farfield_net::Waker(std::sync::Arc::new(waker));
+        self.session
+            .as_mut()
+            .is_some_and(|session| session.set_waker(waker))
+    }
+
     /// Whether the pages come from a server (and so can be over-fetched).
     pub fn is_streamed(&self) -> bool {
         self.session.is_some()

@@ -38,5 +38,5 @@ pub use session::{
     SessionOptions,
 };
 pub use stats::{FailedPage, NetStats};
-pub use transport::{Closing, Target, Transport, TransportEvent};
+pub use transport::{Closing, Target, Transport, TransportEvent, Waker};
 pub use url::stream_url;

@@ -219,6 +219,12 @@ pub struct Session<T: Transport> {
 }
 
 impl<T: Transport> Session<T> {
+    /// Has `waker` called whenever the transport has something to pump
+    /// ([`Transport::set_waker`]); `false` when it cannot.
+    pub fn set_waker(&mut self, waker: crate::transport::Waker) -> bool {
+        self.transport.set_waker(waker)
+    }
+
     /// Starts connecting to `url` (see [`crate::stream_url`]), with the
     /// options' token if they have one.
     pub fn open(mut transport: T, url: String, options: SessionOptions) -> Self {

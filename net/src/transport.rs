@@ -93,6 +93,28 @@ pub trait Transport: std::fmt::Debug {
     fn arrived_at(&self) -> Option<Instant> {
         None
     }
+    /// Calls `waker` whenever an event arrives, from whatever thread
+    /// receives it, so an owner at rest can sleep until then instead of
+    /// polling; `false` for a transport that cannot (its owner polls).
+    fn set_waker(&mut self, _waker: Waker) -> bool {
+        false
+    }
+}
+
+/// Called when a transport has an event to poll.
+#[derive(Clone)]
+pub struct Waker(pub std::sync::Arc<dyn Fn() + Send + Sync>);
+
+impl Waker {
+    pub fn wake(&self) {
+        (self.0)();
+    }
+}
+
+impl std::fmt::Debug for Waker {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str("Waker")
+    }
 }
 
 impl<T: Transport + ?Sized> Transport for Box<T> {
@@ -114,5 +136,9 @@ impl<T: Transport + ?Sized> Transport for Box<T> {
 
     fn arrived_at(&self) -> Option<Instant> {
         (**self).arrived_at()
+    }
+
+    fn set_waker(&mut self, waker: Waker) -> bool {
+        (**self).set_waker(waker)
     }
 }

@@ -24,7 +24,7 @@ use tokio_tungstenite::{MaybeTlsStream, WebSocketStream};
 
 use crate::queue::QueueTransport;
 use crate::session::{Session, SessionError, SessionEvent};
-use crate::transport::{Closing, Target, Transport, TransportEvent};
+use crate::transport::{Closing, Target, Transport, TransportEvent, Waker};
 
 /// The native websocket transport.
 #[derive(Debug)]
@@ -35,6 +35,26 @@ pub struct WebSocketTransport {
     current: Option<Connection>,
     /// For `wss://`: the roots to trust (the webpki roots when `None`).
     tls: Option<Arc<rustls::ClientConfig>>,
+    /// Shared with every connection's task, the one already running too.
+    waker: Arc<std::sync::OnceLock<Waker>>,
+}
+
+/// The connection task's side of the event channel: each event sent
+/// wakes the owner ([`Transport::set_waker`]).
+struct Events {
+    tx: mpsc::Sender<TransportEvent>,
+    waker: Arc<std::sync::OnceLock<Waker>>,
+}
+
+impl Events {
+    /// Sends `event`; `Err` when the owner is gone.
+    fn send(&self, event: TransportEvent) -> Result<(), ()> {
+        self.tx.send(event).map_err(|_| ())?;
+        if let Some(waker) = self.waker.get() {
+            waker.wake();
+        }
+        Ok(())
+    }
 }
 
 #[derive(Debug)]
@@ -73,6 +93,7 @@ impl WebSocketTransport {
             _stop: stop,
             current: None,
             tls,
+            waker: Arc::default(),
         })
     }
 }
@@ -95,7 +116,10 @@ impl Transport for WebSocketTransport {
             .spawn(connection(
                 target.clone(),
                 self.tls.clone(),
-                event_tx,
+                Events {
+                    tx: event_tx,
+                    waker: self.waker.clone(),
+                },
                 out_rx,
             ))
             .abort_handle();
@@ -118,6 +142,11 @@ impl Transport for WebSocketTransport {
         if let Some(c) = self.current.take() {
             c.task.abort();
         }
+    }
+
+    fn set_waker(&mut self, waker: Waker) -> bool {
+        // Set once: a later waker is refused (the first owner keeps it).
+        self.waker.set(waker).is_ok()
     }
 
     fn poll(&mut self, wait: Duration) -> Option<TransportEvent> {
@@ -162,7 +191,7 @@ impl Transport for WebSocketTransport {
 async fn connection(
     target: Target,
     tls: Option<Arc<rustls::ClientConfig>>,
-    events: mpsc::Sender<TransportEvent>,
+    events: Events,
     mut outgoing: async_mpsc::UnboundedReceiver<Vec<u8>>,
 ) {
     let (reason, how) = match run(&target, tls, &events, &mut outgoing).await {
@@ -176,7 +205,7 @@ async fn connection(
 async fn run(
     target: &Target,
     tls: Option<Arc<rustls::ClientConfig>>,
-    events: &mpsc::Sender<TransportEvent>,
+    events: &Events,
     outgoing: &mut async_mpsc::UnboundedReceiver<Vec<u8>>,
 ) -> Result<(), (String, Closing)> {
     let socket = open(target, tls).await?;

@@ -176,6 +176,8 @@ pub struct ViewerApp {
     lost_told: bool,
     /// What the last frame drew.
     drawn: Option<DrawnView>,
+    /// The session wakes the app when something arrives.
+    woken: bool,
 }
 
 /// What a drawn frame showed (see [`ViewerApp::scene`]).
@@ -253,6 +255,11 @@ impl ViewerApp {
         let flight = options.flight_seconds.map(Flight::new);
         let demo = Demo::starting(options.demo.as_ref());
         let notice = options.notice.clone().map(|n| (n, Instant::now()));
+        let mut viewer = viewer;
+        let woken = {
+            let ctx = cc.egui_ctx.clone();
+            viewer.set_waker(move || ctx.request_repaint())
+        };
         let status = Status {
             adapter: renderer.adapter_description(),
             ..Status::default()
@@ -283,6 +290,7 @@ impl ViewerApp {
             lost,
             lost_told: false,
             drawn: None,
+            woken,
         })
     }
 
@@ -653,10 +661,18 @@ impl eframe::App for ViewerApp {
         if busy {
             ui.ctx().request_repaint();
         } else if self.viewer.is_streamed() {
-            // Nothing changes at rest but the network: look again soon
-            // (the scene is not drawn again unless something came).
+            // Nothing changes at rest but the network. Where the session
+            // wakes the app, a quiet link needs a look only now and then
+            // (its timers: a reconnect, a retry); elsewhere, soon. The
+            // scene is not drawn again unless something came.
+            let quiet = self.woken
+                && self.viewer.is_connected()
+                && self.viewer.outstanding() == 0
+                && self.options.demo.is_none()
+                && self.status.demo.is_none();
+            let after = if quiet { 5000 } else { 250 };
             ui.ctx()
-                .request_repaint_after(std::time::Duration::from_millis(250));
+                .request_repaint_after(std::time::Duration::from_millis(after));
         } else if let Some((_, since)) = &self.notice
             && let Some(left) = NOTICE_FOR.checked_sub(since.elapsed())
         {
