@@ -24,9 +24,20 @@ use wasm_bindgen::JsCast;
 use wasm_bindgen::closure::Closure;
 use web_sys::{BinaryType, CloseEvent, MessageEvent, WebSocket};
 
-use crate::transport::{Closing, Target, Transport, TransportEvent};
+use crate::transport::{Closing, Target, Transport, TransportEvent, Waker};
 
 type Events = Rc<RefCell<VecDeque<TransportEvent>>>;
+
+/// The owner's waker, shared with the socket's callbacks.
+type Wake = Rc<RefCell<Option<Waker>>>;
+
+/// Queues `event` and wakes the owner.
+fn push(events: &Events, wake: &Wake, event: TransportEvent) {
+    events.borrow_mut().push_back(event);
+    if let Some(waker) = wake.borrow().as_ref() {
+        waker.wake();
+    }
+}
 
 /// One open (or opening) socket, its callbacks and its queue.
 struct Connection {
@@ -39,7 +50,7 @@ struct Connection {
 impl Connection {
     /// Opens a socket to `target`; a token goes as a subprotocol, the one
     /// field of the handshake a page may set ([`farfield_protocol::auth`]).
-    fn open(target: &Target, hello: Vec<u8>) -> Result<Self, String> {
+    fn open(target: &Target, hello: Vec<u8>, wake: &Wake) -> Result<Self, String> {
         let url = target.url.as_str();
         let socket = match &target.token {
             None => WebSocket::new(url),
@@ -58,15 +69,16 @@ impl Connection {
 
         let on_open = {
             let (events, opened, socket) = (events.clone(), opened.clone(), socket.clone());
+            let wake = wake.clone();
             Closure::<dyn FnMut(web_sys::Event)>::new(move |_| {
                 opened.set(true);
                 // The hello goes first, the moment the socket opens.
                 let _ = socket.send_with_u8_array(&hello);
-                events.borrow_mut().push_back(TransportEvent::Opened);
+                push(&events, &wake, TransportEvent::Opened);
             })
         };
         let on_message = {
-            let events = events.clone();
+            let (events, wake) = (events.clone(), wake.clone());
             Closure::<dyn FnMut(web_sys::Event)>::new(move |event: web_sys::Event| {
                 let Some(message) = event.dyn_ref::<MessageEvent>() else {
                     return;
@@ -74,14 +86,12 @@ impl Connection {
                 // Text frames are not part of the protocol: ignored, as natively.
                 if let Ok(buffer) = message.data().dyn_into::<js_sys::ArrayBuffer>() {
                     let bytes = js_sys::Uint8Array::new(&buffer).to_vec();
-                    events
-                        .borrow_mut()
-                        .push_back(TransportEvent::Frame(Bytes::from(bytes)));
+                    push(&events, &wake, TransportEvent::Frame(Bytes::from(bytes)));
                 }
             })
         };
         let on_close = {
-            let (events, url) = (events.clone(), url.to_owned());
+            let (events, url, wake) = (events.clone(), url.to_owned(), wake.clone());
             Closure::<dyn FnMut(web_sys::Event)>::new(move |event: web_sys::Event| {
                 let (code, reason) = event
                     .dyn_ref::<CloseEvent>()
@@ -97,9 +107,7 @@ impl Connection {
                         Closing::Failed,
                     )
                 };
-                events
-                    .borrow_mut()
-                    .push_back(TransportEvent::Closed { reason, how });
+                push(&events, &wake, TransportEvent::Closed { reason, how });
             })
         };
         socket.set_onopen(Some(on_open.as_ref().unchecked_ref()));
@@ -126,6 +134,7 @@ pub struct BrowserTransport {
     connection: Option<Connection>,
     /// Events of the transport itself (a URL the browser refused at once).
     pending: VecDeque<TransportEvent>,
+    wake: Wake,
 }
 
 impl std::fmt::Debug for BrowserTransport {
@@ -145,7 +154,7 @@ impl BrowserTransport {
 impl Transport for BrowserTransport {
     fn connect(&mut self, target: &Target, hello: Vec<u8>) {
         self.close();
-        match Connection::open(target, hello) {
+        match Connection::open(target, hello, &self.wake) {
             Ok(c) => self.connection = Some(c),
             Err(reason) => self.pending.push_back(TransportEvent::Closed {
                 reason,
@@ -166,6 +175,11 @@ impl Transport for BrowserTransport {
         if let Some(c) = self.connection.take() {
             c.close();
         }
+    }
+
+    fn set_waker(&mut self, waker: Waker) -> bool {
+        *self.wake.borrow_mut() = Some(waker);
+        true
     }
 
     fn poll(&mut self, _wait: Duration) -> Option<TransportEvent> {

@@ -95,6 +95,7 @@ pub async fn start(canvas_id: String) -> Result<(), JsValue> {
             canvas,
             web_options,
             Box::new(move |cc| {
+                CONTEXT.with(|c| *c.borrow_mut() = Some(cc.egui_ctx.clone()));
                 let app = ViewerApp::new(cc, viewer, options, Box::new(page))
                     .map_err(|e| format!("{e:#}"))?;
                 Ok(Box::new(app))
@@ -108,6 +109,19 @@ thread_local! {
     static CAPTURE_ASKED: Cell<bool> = const { Cell::new(false) };
     /// A script pressed the screenshot button ([`screenshot`]).
     static SCREENSHOT_ASKED: Cell<bool> = const { Cell::new(false) };
+    /// The viewer's egui context, to draw a frame for a script's request
+    /// (at rest the page draws none by itself).
+    static CONTEXT: std::cell::RefCell<Option<eframe::egui::Context>> =
+        const { std::cell::RefCell::new(None) };
+}
+
+/// Has the viewer draw a frame soon.
+fn wake_viewer() {
+    CONTEXT.with(|c| {
+        if let Some(ctx) = c.borrow().as_ref() {
+            ctx.request_repaint();
+        }
+    });
 }
 
 /// Takes the screenshot the panel's button takes: the PNG is offered as a
@@ -116,6 +130,7 @@ thread_local! {
 #[wasm_bindgen]
 pub fn screenshot() {
     SCREENSHOT_ASKED.with(|c| c.set(true));
+    wake_viewer();
 }
 
 /// Asks for the canvas's pixels as the next frame draws them (panel and
@@ -125,6 +140,7 @@ pub fn screenshot() {
 #[wasm_bindgen]
 pub fn capture_canvas() {
     CAPTURE_ASKED.with(|c| c.set(true));
+    wake_viewer();
 }
 
 /// Bytes of the module's linear memory (resident pages and all): what
