@@ -40,10 +40,11 @@ pub struct ViewJob {
 }
 
 pub fn run(job: ViewJob) -> anyhow::Result<()> {
-    let title = match &job.source {
-        Source::File(path) => format!("farfield · {}", path.display()),
-        Source::Server { url, scene } => format!("farfield · {scene} on {url}"),
+    let what = match &job.source {
+        Source::File(path) => path.display().to_string(),
+        Source::Server { url, scene } => format!("{scene} on {url}"),
     };
+    let title = format!("farfield · {what}");
     let viewer = match &job.source {
         Source::File(path) => Viewer::open_file(path)?,
         Source::Server { url, scene } => {
@@ -99,7 +100,6 @@ pub fn run(job: ViewJob) -> anyhow::Result<()> {
     .context("opening the viewer's window")?;
     match failed.lock().ok().and_then(|mut f| f.take()) {
         Some(message) => {
-            let what = title.trim_start_matches("farfield · ");
             Err(anyhow::anyhow!("{message}")).context(format!("{what}: no scene to show"))
         }
         None => Ok(()),

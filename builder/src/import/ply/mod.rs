@@ -785,18 +785,12 @@ impl<V: Values> Body<'_, V> {
         out: &mut dyn BodyOut,
     ) -> Result<(), ImportError> {
         let roles = VertexRoles::of(self.path, element)?;
-        let batch = out.batch();
-        let mut done = 0;
-        loop {
-            let n = (element.count - done).min(batch);
-            let vertices = self.vertex_batch(element, &roles, done, n, cap)?;
+        for (first, n) in batches(element.count, out.batch()) {
+            let vertices = self.vertex_batch(element, &roles, first, n, cap)?;
             out.vertices(vertices)?;
-            done += n;
             self.src.batch_done();
-            if done >= element.count {
-                return Ok(());
-            }
         }
+        Ok(())
     }
 
     /// Vertices `first..first + n` of `element`.
@@ -890,18 +884,12 @@ impl<V: Values> Body<'_, V> {
             vertex_count,
             indices: Vec::new(),
         };
-        let batch = out.batch();
-        let mut done = 0;
-        loop {
-            let n = (element.count - done).min(batch);
-            self.polygon_batch(element, list, &mut polygon, done, n, out.triangles())?;
+        for (first, n) in batches(element.count, out.batch()) {
+            self.polygon_batch(element, list, &mut polygon, first, n, out.triangles())?;
             out.triangles_done()?;
-            done += n;
             self.src.batch_done();
-            if done >= element.count {
-                return Ok(());
-            }
         }
+        Ok(())
     }
 
     /// Faces `first..first + n` of `element`, whose index list is property
@@ -935,6 +923,15 @@ impl<V: Values> Body<'_, V> {
         }
         Ok(())
     }
+}
+
+/// The batches of an element of `count` instances, `batch` at most each:
+/// (first, count) pairs, one `(0, 0)` for an empty element (so its
+/// owner still hears of it).
+fn batches(count: u64, batch: u64) -> impl Iterator<Item = (u64, u64)> {
+    let batch = batch.max(1);
+    let starts = (0..count.max(1)).step_by(usize::try_from(batch).unwrap_or(usize::MAX));
+    starts.map(move |first| (first, (count - first).min(batch)))
 }
 
 /// Turns one `face` or `tristrips` index list into triangles.
