@@ -346,18 +346,20 @@ fn the_screenshot_button_saves_the_picture_on_webgpu_and_webgl() {
     rt.block_on(server.shutdown()).unwrap();
 }
 
-/// A window larger than the device's largest texture (9000 x 9000 against
+/// A window wider than the device's largest texture (9000 against
 /// WebGPU's 8192) draws the scene on a canvas held within that size, with
-/// no GPU error (it used to show nothing but the error, or panic).
+/// no GPU error (it used to show nothing but the error, or panic). One
+/// side past the limit is enough, and keeps a software GPU's frames short
+/// (9000 x 9000 took over 30 s a frame on a loaded CI machine).
 #[test]
-fn a_9000_pixel_window_draws_within_the_devices_limits() {
+fn a_9000_pixel_wide_window_draws_within_the_devices_limits() {
     let _one = ONE_BROWSER.lock().unwrap_or_else(|e| e.into_inner());
     let Some((dir, _, web)) = setup("viewer-huge") else {
         return;
     };
     let rt = runtime();
     let server = rt.block_on(serve(&dir, &web, "127.0.0.1:0".parse().unwrap()));
-    let browser = Browser::start(9000, 9000);
+    let browser = Browser::start(9000, 1200);
     for backend in ["webgpu", "webgl"] {
         browser.goto(&format!(
             "http://{}/view/bunny?panel=0&backend={backend}",
@@ -374,8 +376,8 @@ fn a_9000_pixel_window_draws_within_the_devices_limits() {
         );
         let side = side.as_u64().unwrap_or(u64::MAX);
         assert!(
-            (1000..=8192).contains(&side),
-            "{backend}: a canvas of {side} pixels"
+            (8000..=8192).contains(&side),
+            "{backend}: a canvas {side} pixels wide"
         );
     }
     drop(browser);
