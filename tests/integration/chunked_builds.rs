@@ -155,7 +155,7 @@ fn clouds_and_meshes_built_in_chunks_render_as_in_memory_builds_do() {
         Some(data) => {
             inputs.push(("autzen", data.join("autzen_trim.las"), "4M"));
             inputs.push(("bunny", data.join("stanford-bunny.obj"), "1"));
-            // Read as streams: normals; triangle strips. Chunks of a few
+            // Read as streams (the bunny too): normals; triangle strips. Chunks of a few
             // thousand vertices (of 1,000, the horse's tree is further
             // from the in-memory one than the other valid tree: 27.6 dB
             // against 30.1 at the first view).
@@ -435,8 +435,42 @@ fn a_ply_mesh_builds_inside_a_cgroup_smaller_than_its_in_memory_build_needs() {
     );
 }
 
-/// A binary PLY of a wavy `side` x `side` grid: float positions, two
-/// triangles a cell.
+/// So is an OBJ mesh, read as a stream after a survey of the whole file:
+/// the same grid, with its normals given by face corners, which the
+/// build gathers on disk.
+#[cfg(target_os = "linux")]
+#[test]
+fn an_obj_mesh_builds_inside_a_cgroup_smaller_than_its_in_memory_build_needs() {
+    let dir = scratch("chunked-cgroup-obj");
+    let path = dir.join("grid.obj");
+    write_grid_obj(&path, 1225);
+    builds_inside_a_cgroup(
+        "chunked-build-obj",
+        &dir,
+        path.to_str().unwrap(),
+        1225 * 1225,
+    );
+}
+
+/// A wavy `side` x `side` grid's vertices, and its triangles, two a cell.
+fn grid(
+    side: u32,
+) -> (
+    impl Iterator<Item = [f32; 3]>,
+    impl Iterator<Item = [u32; 3]>,
+) {
+    let vertices = (0..side * side).map(move |i| {
+        let (fx, fy) = ((i % side) as f32 * 0.1, (i / side) as f32 * 0.1);
+        [fx, fy, (fx * 0.7).sin() + (fy * 0.4).cos()]
+    });
+    let triangles = (0..(side - 1) * (side - 1)).flat_map(move |c| {
+        let i = (c / (side - 1)) * side + c % (side - 1);
+        [[i, i + 1, i + side], [i + 1, i + side + 1, i + side]]
+    });
+    (vertices, triangles)
+}
+
+/// A binary PLY of [`grid`]: float positions and its faces.
 fn write_grid_ply(path: &Path, side: u32) {
     use std::io::Write;
     let mut out = std::io::BufWriter::new(std::fs::File::create(path).unwrap());
@@ -447,26 +481,34 @@ fn write_grid_ply(path: &Path, side: u32) {
         side * side
     )
     .unwrap();
-    for y in 0..side {
-        for x in 0..side {
-            let (fx, fy) = (x as f32 * 0.1, y as f32 * 0.1);
-            let z = (fx * 0.7).sin() + (fy * 0.4).cos();
-            for v in [fx, fy, z] {
-                out.write_all(&v.to_le_bytes()).unwrap();
-            }
+    let (vertices, triangles) = grid(side);
+    for v in vertices.flatten() {
+        out.write_all(&v.to_le_bytes()).unwrap();
+    }
+    for t in triangles {
+        out.write_all(&[3]).unwrap();
+        for v in t {
+            out.write_all(&(v as i32).to_le_bytes()).unwrap();
         }
     }
-    for y in 0..side - 1 {
-        for x in 0..side - 1 {
-            let i = (y * side + x) as i32;
-            let s = side as i32;
-            for t in [[i, i + 1, i + s], [i + 1, i + s + 1, i + s]] {
-                out.write_all(&[3]).unwrap();
-                for v in t {
-                    out.write_all(&v.to_le_bytes()).unwrap();
-                }
-            }
-        }
+    out.flush().unwrap();
+}
+
+/// An OBJ of [`grid`]: its vertices, one normal for every 7 vertices in
+/// a table, and faces whose corners name the normals.
+fn write_grid_obj(path: &Path, side: u32) {
+    use std::io::Write;
+    let mut out = std::io::BufWriter::new(std::fs::File::create(path).unwrap());
+    let (vertices, triangles) = grid(side);
+    for [x, y, z] in vertices {
+        writeln!(out, "v {x} {y} {z}").unwrap();
+    }
+    for k in 0..(side * side).div_ceil(7) {
+        writeln!(out, "vn {} 0.1 1", (k % 10) as f32 * 0.05).unwrap();
+    }
+    for [a, b, c] in triangles {
+        let corner = |v: u32| format!("{}//{}", v + 1, v / 7 + 1);
+        writeln!(out, "f {} {} {}", corner(a), corner(b), corner(c)).unwrap();
     }
     out.flush().unwrap();
 }

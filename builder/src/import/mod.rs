@@ -11,11 +11,12 @@
 
 pub(crate) mod common;
 pub(crate) mod las;
-mod obj;
-mod off;
+pub(crate) mod obj;
+pub(crate) mod off;
 mod params;
 mod pdb;
 pub(crate) mod ply;
+pub(crate) mod stream;
 #[cfg(test)]
 mod test_file;
 

@@ -18,11 +18,59 @@ use std::path::Path;
 use glam::{DVec3, Vec3};
 
 use super::ImportError;
-use super::common::{fan, unit_color, unit_normals};
-use crate::scene::{Geometry, Primitives, Scene};
+use super::common::{fan, unit_color};
+use super::stream::{BodyOut, Gather, MeshInfo, Vertices};
+use crate::scene::Scene;
 
 /// Loads an OFF file as one triangle mesh (a point cloud if it has no faces).
 pub fn load(path: &Path) -> Result<Scene, ImportError> {
+    let mut gather = Gather::default();
+    read(path, survey(path)?.color_scale, &mut gather)?;
+    Ok(Scene::single(gather.into_geometry(path)))
+}
+
+/// What an OFF file's header says of it; a file with colors has its
+/// vertices read too, to know their scale.
+pub(crate) fn survey(path: &Path) -> Result<MeshInfo, ImportError> {
+    let (mut lines, header) = open(path)?;
+    let mut max = 0.0f64;
+    if header.layout.color {
+        for_each_vertex(path, &mut lines, &header, |(_, _, c)| {
+            max = c.into_iter().flatten().fold(max, f64::max);
+            Ok(())
+        })?;
+    }
+    Ok(MeshInfo {
+        vertices: header.vertices,
+        triangles: header.faces > 0,
+        normals: header.layout.normal,
+        colors: header.layout.color,
+        color_scale: if max > 1.0 { 1.0 / 255.0 } else { 1.0 },
+    })
+}
+
+/// Reads an OFF file's vertices and triangles into `out` a batch at a
+/// time (see [`BodyOut::batch`]), as [`load`] reads them, given what
+/// [`survey`] found.
+pub(crate) fn stream(
+    path: &Path,
+    info: &MeshInfo,
+    out: &mut dyn BodyOut,
+) -> Result<(), ImportError> {
+    read(path, info.color_scale, out)
+}
+
+/// The header: which values a vertex line holds, and the counts.
+struct Header {
+    layout: Layout,
+    vertices: u64,
+    faces: u64,
+    /// The file's length, a bound on what is allocated ahead of reading.
+    file_len: u64,
+}
+
+/// Opens an OFF file and reads its header; the lines after it.
+fn open(path: &Path) -> Result<(Lines<BufReader<File>>, Header), ImportError> {
     let file = File::open(path).map_err(|e| ImportError::io(path, e))?;
     let file_len = file.metadata().map(|m| m.len()).unwrap_or(0);
     let mut lines = Lines {
@@ -73,56 +121,87 @@ pub fn load(path: &Path) -> Result<Scene, ImportError> {
         w.parse::<u64>()
             .map_err(|_| header("counts are not numbers"))
     };
-    let (nv, nf) = (count(0)?, count(1)?);
-    if nv > u64::from(u32::MAX) {
+    let (vertices, faces) = (count(0)?, count(1)?);
+    if vertices > u64::from(u32::MAX) {
         return Err(header("too many vertices for 32-bit indices"));
     }
-    let cap = nv.min(file_len / 6) as usize;
-
     let layout = Layout { st, color, normal };
-    let mut positions = Vec::with_capacity(cap);
-    let mut normals = normal.then(|| Vec::with_capacity(cap));
-    let mut colors = color.then(|| Vec::with_capacity(cap));
-    for k in 0..nv {
-        let (no, line) = lines.expect(path, || format!("vertex {k}"))?;
-        let at =
-            |msg| ImportError::malformed(path, format!("line {no}"), format!("vertex {k}: {msg}"));
-        let (p, n, c) = layout.vertex(line).map_err(at)?;
-        positions.push(p);
-        normals.iter_mut().zip(n).for_each(|(ns, n)| ns.push(n));
-        colors.iter_mut().zip(c).for_each(|(cs, c)| cs.push(c));
+    Ok((
+        lines,
+        Header {
+            layout,
+            vertices,
+            faces,
+            file_len,
+        },
+    ))
+}
+
+/// Reads the file into `out`, its colors multiplied by `color_scale`.
+fn read(path: &Path, color_scale: f64, out: &mut dyn BodyOut) -> Result<(), ImportError> {
+    let (mut lines, header) = open(path)?;
+    let batch = out.batch().min(header.vertices).min(header.file_len / 6) as usize;
+    let (normal, color) = (header.layout.normal, header.layout.color);
+    let empty = || Vertices {
+        positions: Vec::with_capacity(batch),
+        normals: normal.then(|| Vec::with_capacity(batch)),
+        colors: color.then(|| Vec::with_capacity(batch)),
+    };
+    let mut vertices = empty();
+    let mut handed = 0u64;
+    for_each_vertex(path, &mut lines, &header, |(p, n, c)| {
+        vertices.positions.push(p);
+        vertices
+            .normals
+            .iter_mut()
+            .zip(n)
+            .for_each(|(ns, n)| ns.push(n));
+        vertices.colors.iter_mut().zip(c).for_each(|(cs, c)| {
+            cs.push(c.map(|v| unit_color(v * color_scale)));
+        });
+        if vertices.positions.len() as u64 >= out.batch() {
+            handed += vertices.positions.len() as u64;
+            out.vertices(std::mem::replace(&mut vertices, empty()))?;
+        }
+        Ok(())
+    })?;
+    if handed == 0 || !vertices.positions.is_empty() {
+        out.vertices(vertices)?;
     }
-    let mut triangles = Vec::with_capacity(nf.min(file_len / 8) as usize);
     let mut polygon = Vec::new();
-    for k in 0..nf {
+    let mut faces = 0u64;
+    for k in 0..header.faces {
         let (no, line) = lines.expect(path, || format!("face {k}"))?;
         let at =
             |msg| ImportError::malformed(path, format!("line {no}"), format!("face {k}: {msg}"));
-        face(line, nv, &mut polygon).map_err(at)?;
-        fan(&polygon, &mut triangles);
+        face(line, header.vertices, &mut polygon).map_err(at)?;
+        fan(&polygon, out.triangles());
+        faces += 1;
+        if faces >= out.batch() {
+            out.triangles_done()?;
+            faces = 0;
+        }
     }
+    if faces > 0 {
+        out.triangles_done()?;
+    }
+    Ok(())
+}
 
-    let primitives = if nf == 0 {
-        Primitives::Points
-    } else {
-        Primitives::Triangles(triangles)
-    };
-    let triangles = match &primitives {
-        Primitives::Triangles(t) => Some(&t[..]),
-        _ => None,
-    };
-    let normals = normals.and_then(|n| unit_normals(n, &positions, triangles));
-    let colors = colors.map(|c: Vec<[f64; 3]>| {
-        let max = c.iter().flatten().fold(0.0f64, |m, &v| m.max(v));
-        let scale = if max > 1.0 { 1.0 / 255.0 } else { 1.0 };
-        c.iter()
-            .map(|rgb| rgb.map(|v| unit_color(v * scale)))
-            .collect()
-    });
-    let mut geometry = Geometry::new(path.display().to_string(), positions, primitives);
-    geometry.normals = normals;
-    geometry.colors = colors;
-    Ok(Scene::single(geometry))
+/// Parses each of the header's vertices in order.
+fn for_each_vertex(
+    path: &Path,
+    lines: &mut Lines<BufReader<File>>,
+    header: &Header,
+    mut each: impl FnMut(Vertex) -> Result<(), ImportError>,
+) -> Result<(), ImportError> {
+    for k in 0..header.vertices {
+        let (no, line) = lines.expect(path, || format!("vertex {k}"))?;
+        let at =
+            |msg| ImportError::malformed(path, format!("line {no}"), format!("vertex {k}: {msg}"));
+        each(header.layout.vertex(line).map_err(at)?)?;
+    }
+    Ok(())
 }
 
 /// A position, its normal and its color as read (0..1 or 0..255).
@@ -284,6 +363,7 @@ fn index(word: &[u8], limit: u64) -> Result<u32, String> {
 mod tests {
     use super::*;
     use crate::import::test_file::TestFile;
+    use crate::scene::{Geometry, Primitives};
 
     fn load_text(text: &str) -> Result<Geometry, ImportError> {
         let result = load(TestFile::new("t.off", text).path());

@@ -35,6 +35,7 @@ use rayon::prelude::*;
 
 use super::ImportError;
 use super::common::{unit_color, unit_normals};
+use super::stream::{BodyOut, CornerNormals, MeshInfo, Vertices};
 use crate::scene::{Geometry, Primitives, Scene};
 use part::{Counts, Part};
 
@@ -58,6 +59,47 @@ pub fn load(path: &Path) -> Result<Scene, ImportError> {
 /// [`load`], reading `block_bytes` at a time (small in tests, to cut lines,
 /// parts and blocks everywhere).
 fn load_in_blocks(path: &Path, block_bytes: usize) -> Result<Scene, ImportError> {
+    let mut obj = Obj::default();
+    read_blocks(path, block_bytes, &mut obj)?;
+    Ok(Scene::single(obj.finish(path)))
+}
+
+/// What an OBJ file holds, as [`load`] would keep it: a parse of the whole
+/// file that keeps only counts and flags.
+pub(crate) fn survey(path: &Path) -> Result<MeshInfo, ImportError> {
+    let mut survey = Survey::default();
+    read_blocks(path, BLOCK_BYTES, &mut survey)?;
+    Ok(survey.info())
+}
+
+/// Reads an OBJ file into `out` a block at a time, as [`load`] reads it,
+/// given what [`survey`] found: vertices (with colors, scaled as `load`
+/// scales them, where `info` keeps them), triangles, and, where `info`
+/// keeps normals, the normals and the corners that give them to vertices
+/// to `corners`.
+pub(crate) fn stream(
+    path: &Path,
+    info: &MeshInfo,
+    out: &mut dyn BodyOut,
+    corners: &mut dyn CornerNormals,
+) -> Result<(), ImportError> {
+    let mut stream = Stream {
+        path,
+        info,
+        out,
+        corners,
+    };
+    read_blocks(path, BLOCK_BYTES, &mut stream)
+}
+
+/// Where parsed parts go, in file order.
+trait Parts {
+    fn append(&mut self, part: Part) -> Result<(), ImportError>;
+}
+
+/// Reads `path` in blocks of whole lines of about `block_bytes`, each
+/// parsed on all threads, into `out`.
+fn read_blocks(path: &Path, block_bytes: usize, out: &mut dyn Parts) -> Result<(), ImportError> {
     let mut file = File::open(path).map_err(|e| ImportError::io(path, e))?;
     // A small file is one block of its own size, not a whole empty block;
     // a pipe has no size, and gets whole blocks.
@@ -67,7 +109,7 @@ fn load_in_blocks(path: &Path, block_bytes: usize) -> Result<Scene, ImportError>
         .filter(|m| m.is_file())
         .map_or(u64::MAX, |m| m.len());
     let block_bytes = block_bytes.min(usize::try_from(file_bytes).unwrap_or(usize::MAX).max(1));
-    let mut obj = Obj::default();
+    let mut before = Counts::default();
     let mut block: Vec<u8> = Vec::new();
     let mut at_end = false;
     while !at_end {
@@ -94,11 +136,62 @@ fn load_in_blocks(path: &Path, block_bytes: usize) -> Result<Scene, ImportError>
                 None => continue,
             }
         };
-        obj.add_block(&block[..whole])
-            .map_err(|(line, msg)| ImportError::malformed(path, format!("line {line}"), msg))?;
+        before = add_block(&block[..whole], before, out).map_err(|e| match e {
+            BlockError::Line(line, msg) => {
+                ImportError::malformed(path, format!("line {line}"), msg)
+            }
+            BlockError::Out(e) => e,
+        })?;
         block.drain(..whole);
     }
-    Ok(Scene::single(obj.finish(path)))
+    Ok(())
+}
+
+/// Why a block could not be added.
+enum BlockError {
+    /// A malformed line: its number (from 1) and what is wrong.
+    Line(u64, String),
+    /// Where the parts go refused one.
+    Out(ImportError),
+}
+
+/// Parses a block of whole lines, which follows what `before` counts, on
+/// all threads, and appends its parts to `out` in order; what precedes
+/// the next block.
+fn add_block(block: &[u8], before: Counts, out: &mut dyn Parts) -> Result<Counts, BlockError> {
+    let parts = rayon::current_num_threads().max(1) * PARTS_PER_THREAD;
+    let ranges = part::cut(block, parts);
+    // What precedes each part: the counts of those before it.
+    let counts: Vec<Counts> = ranges
+        .par_iter()
+        .map(|r| part::count(&block[r.clone()]))
+        .collect();
+    let mut after = before;
+    let mut starts = Vec::with_capacity(counts.len());
+    for c in &counts {
+        starts.push(after);
+        after = after.plus(c);
+    }
+    if after.vertices > u64::from(u32::MAX) {
+        let line = starts.last().map_or(before.lines, |s| s.lines) + 1;
+        return Err(BlockError::Line(
+            line,
+            "too many vertices for 32-bit indices".into(),
+        ));
+    }
+    let parsed: Vec<Result<Part, (u64, String)>> = ranges
+        .par_iter()
+        .zip(&starts)
+        .map(|(r, start)| part::parse(&block[r.clone()], start))
+        .collect();
+    for (result, count) in parsed.into_iter().zip(&counts) {
+        let part = result.map_err(|(line, msg)| BlockError::Line(line, msg))?;
+        // The offsets given to later parts came from the counting pass.
+        debug_assert_eq!(part.positions.len() as u64, count.vertices);
+        debug_assert_eq!(part.normals.len() as u64, count.normals);
+        out.append(part).map_err(BlockError::Out)?;
+    }
+    Ok(after)
 }
 
 /// The geometry read so far: parts are appended to it in file order.
@@ -113,52 +206,17 @@ struct Obj {
     /// A face corner had no normal.
     corner_without_normal: bool,
     triangles: Vec<[u32; 3]>,
-    /// Lines read so far.
-    lines: u64,
+}
+
+impl Parts for Obj {
+    fn append(&mut self, part: Part) -> Result<(), ImportError> {
+        self.extend(part);
+        Ok(())
+    }
 }
 
 impl Obj {
-    /// Parses a block of whole lines on all threads and appends it; on a
-    /// malformed line, its number (from 1) and what is wrong.
-    fn add_block(&mut self, block: &[u8]) -> Result<(), (u64, String)> {
-        let parts = rayon::current_num_threads().max(1) * PARTS_PER_THREAD;
-        let ranges = part::cut(block, parts);
-        // What precedes each part: the counts of those before it.
-        let counts: Vec<Counts> = ranges
-            .par_iter()
-            .map(|r| part::count(&block[r.clone()]))
-            .collect();
-        let mut before = Counts {
-            lines: self.lines,
-            vertices: self.positions.len() as u64,
-            normals: self.normals.len() as u64,
-        };
-        let mut starts = Vec::with_capacity(counts.len());
-        for c in &counts {
-            starts.push(before);
-            before = before.plus(c);
-        }
-        if before.vertices > u64::from(u32::MAX) {
-            let line = starts.last().map_or(self.lines, |s| s.lines) + 1;
-            return Err((line, "too many vertices for 32-bit indices".into()));
-        }
-        let parsed: Vec<Result<Part, (u64, String)>> = ranges
-            .par_iter()
-            .zip(&starts)
-            .map(|(r, start)| part::parse(&block[r.clone()], start))
-            .collect();
-        for (result, count) in parsed.into_iter().zip(&counts) {
-            let part = result?;
-            // The offsets given to later parts came from the counting pass.
-            debug_assert_eq!(part.positions.len() as u64, count.vertices);
-            debug_assert_eq!(part.normals.len() as u64, count.normals);
-            self.append(part);
-        }
-        self.lines = before.lines;
-        Ok(())
-    }
-
-    fn append(&mut self, part: Part) {
+    fn extend(&mut self, part: Part) {
         let first_vertex = self.positions.len();
         self.positions.extend_from_slice(&part.positions);
         self.colors = match (self.colors.take(), part.colors) {
@@ -210,8 +268,7 @@ impl Obj {
             _ => None,
         };
         let colors = colors.filter(|c| c.len() == positions.len()).map(|c| {
-            let max = c.iter().flatten().fold(0.0f64, |m, &v| m.max(v));
-            let scale = if max > 1.0 { 1.0 / 255.0 } else { 1.0 };
+            let scale = color_scale(c.iter().flatten().fold(0.0f64, |m, &v| m.max(v)));
             c.iter()
                 .map(|rgb| rgb.map(|v| unit_color(v * scale)))
                 .collect()
@@ -220,6 +277,120 @@ impl Obj {
         geometry.normals = normals;
         geometry.colors = colors;
         geometry
+    }
+}
+
+/// What [`survey`] gathers from each part.
+struct Survey {
+    vertices: u64,
+    triangles: bool,
+    /// Every vertex so far had a color, and the largest component.
+    all_colored: bool,
+    color_max: f64,
+    corner_without_normal: bool,
+}
+
+impl Default for Survey {
+    fn default() -> Self {
+        Self {
+            vertices: 0,
+            triangles: false,
+            all_colored: true,
+            color_max: 0.0,
+            corner_without_normal: false,
+        }
+    }
+}
+
+impl Parts for Survey {
+    fn append(&mut self, part: Part) -> Result<(), ImportError> {
+        self.vertices += part.positions.len() as u64;
+        self.triangles |= !part.triangles.is_empty();
+        self.corner_without_normal |= part.corner_without_normal;
+        match &part.colors {
+            Some(colors) => {
+                self.color_max = colors
+                    .iter()
+                    .flatten()
+                    .fold(self.color_max, |m, &v| m.max(v));
+            }
+            None if !part.positions.is_empty() => self.all_colored = false,
+            None => {}
+        }
+        Ok(())
+    }
+}
+
+impl Survey {
+    /// What [`Obj::finish`] would keep.
+    fn info(&self) -> MeshInfo {
+        MeshInfo {
+            vertices: self.vertices,
+            triangles: self.triangles,
+            normals: self.triangles && !self.corner_without_normal,
+            colors: self.all_colored && self.vertices > 0,
+            color_scale: color_scale(self.color_max),
+        }
+    }
+}
+
+/// What OBJ colors are multiplied by to be 0..1: they are 0..1 floats, or
+/// 0..255 when any component exceeds 1.
+fn color_scale(max: f64) -> f64 {
+    if max > 1.0 { 1.0 / 255.0 } else { 1.0 }
+}
+
+/// Parts handed on to a build's files as they come (see [`stream`]).
+struct Stream<'a> {
+    path: &'a Path,
+    info: &'a MeshInfo,
+    out: &'a mut dyn BodyOut,
+    corners: &'a mut dyn CornerNormals,
+}
+
+impl Parts for Stream<'_> {
+    fn append(&mut self, part: Part) -> Result<(), ImportError> {
+        let Part {
+            positions,
+            colors,
+            normals,
+            corner_normals,
+            triangles,
+            ..
+        } = part;
+        let colors = match (self.info.colors, colors) {
+            (false, _) => None,
+            (true, Some(colors)) => Some(
+                colors
+                    .iter()
+                    .map(|rgb| rgb.map(|v| unit_color(v * self.info.color_scale)))
+                    .collect(),
+            ),
+            (true, None) if positions.is_empty() => Some(Vec::new()),
+            (true, None) => {
+                return Err(ImportError::malformed(
+                    self.path,
+                    "body",
+                    "the file changed while it was being read",
+                ));
+            }
+        };
+        if !positions.is_empty() {
+            self.out.vertices(Vertices {
+                positions,
+                normals: None,
+                colors,
+            })?;
+        }
+        if self.info.normals {
+            self.corners.table(&normals)?;
+            self.corners.corners(&corner_normals)?;
+        }
+        if !triangles.is_empty() {
+            self.out.triangles().extend_from_slice(&triangles);
+            self.out.triangles_done()?;
+        }
+        Ok(())
     }
 }
 

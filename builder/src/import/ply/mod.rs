@@ -31,8 +31,9 @@ use std::path::Path;
 use glam::{DVec3, Vec3};
 
 use super::ImportError;
-use super::common::{fan, unit_color, unit_normals};
-use crate::scene::{Geometry, Primitives, Rgb8, Scene};
+use super::common::{fan, unit_color};
+use super::stream::{BodyOut, Gather, MeshInfo, Vertices};
+use crate::scene::Scene;
 
 mod fast;
 mod mapped;
@@ -70,18 +71,8 @@ pub(crate) fn stream(path: &Path, out: &mut dyn BodyOut) -> Result<(), ImportErr
     read_file(path, true, out)
 }
 
-/// What a PLY file's header says of it, before its body is read.
-#[derive(Debug, Clone, Copy)]
-pub(crate) struct PlyInfo {
-    pub vertices: u64,
-    /// It has `face` or `tristrips` (a mesh; else a point cloud).
-    pub triangles: bool,
-    pub normals: bool,
-    pub colors: bool,
-}
-
 /// Reads a PLY file's header.
-pub(crate) fn survey(path: &Path) -> Result<PlyInfo, ImportError> {
+pub(crate) fn survey(path: &Path) -> Result<MeshInfo, ImportError> {
     let file = File::open(path).map_err(|e| ImportError::io(path, e))?;
     let header = read_header(path, &mut BufReader::with_capacity(64 << 10, file))?;
     let vertex = header
@@ -90,7 +81,7 @@ pub(crate) fn survey(path: &Path) -> Result<PlyInfo, ImportError> {
         .find(|e| e.name == "vertex")
         .ok_or_else(|| ImportError::malformed(path, "header", "there is no element vertex"))?;
     let roles = VertexRoles::of(path, vertex)?;
-    Ok(PlyInfo {
+    Ok(MeshInfo {
         vertices: vertex.count,
         triangles: header
             .elements
@@ -98,6 +89,7 @@ pub(crate) fn survey(path: &Path) -> Result<PlyInfo, ImportError> {
             .any(|e| matches!(e.name.as_str(), "face" | "tristrips") && !e.props.is_empty()),
         normals: roles.normal.is_some(),
         colors: roles.color.is_some(),
+        color_scale: 1.0,
     })
 }
 
@@ -150,65 +142,6 @@ fn read_file(path: &Path, map: bool, out: &mut dyn BodyOut) -> Result<(), Import
             };
             read_body(path, &header, body_len, &mut src, out)
         }
-    }
-}
-
-/// Where a body's vertices and triangles go: into memory whole (an import,
-/// [`Gather`]) or, a batch at a time, to a build's files.
-pub(crate) trait BodyOut {
-    /// The most vertices, or faces, read before they are handed over.
-    fn batch(&self) -> u64;
-    /// The next vertices, in order.
-    fn vertices(&mut self, batch: Vertices) -> Result<(), ImportError>;
-    /// Where the faces' triangles gather; [`BodyOut::triangles_done`] is
-    /// called after each batch of faces.
-    fn triangles(&mut self) -> &mut Vec<[u32; 3]>;
-    fn triangles_done(&mut self) -> Result<(), ImportError>;
-}
-
-/// A whole file in memory: one batch of everything.
-#[derive(Default)]
-struct Gather {
-    vertices: Vertices,
-    triangles: Option<Vec<[u32; 3]>>,
-}
-
-impl BodyOut for Gather {
-    fn batch(&self) -> u64 {
-        u64::MAX
-    }
-
-    fn vertices(&mut self, batch: Vertices) -> Result<(), ImportError> {
-        self.vertices = batch;
-        Ok(())
-    }
-
-    fn triangles(&mut self) -> &mut Vec<[u32; 3]> {
-        self.triangles.get_or_insert_with(Vec::new)
-    }
-
-    fn triangles_done(&mut self) -> Result<(), ImportError> {
-        Ok(())
-    }
-}
-
-impl Gather {
-    fn into_geometry(self, path: &Path) -> Geometry {
-        let Vertices {
-            positions,
-            normals,
-            colors,
-        } = self.vertices;
-        let triangles = self.triangles;
-        let normals = normals.and_then(|n| unit_normals(n, &positions, triangles.as_deref()));
-        let primitives = match triangles {
-            Some(t) => Primitives::Triangles(t),
-            None => Primitives::Points,
-        };
-        let mut geometry = Geometry::new(path.display().to_string(), positions, primitives);
-        geometry.normals = normals;
-        geometry.colors = colors;
-        geometry
     }
 }
 
@@ -704,15 +637,6 @@ fn read_body<V: Values>(
     Ok(())
 }
 
-/// A batch of vertices: positions, and normals and colors where the file
-/// has them.
-#[derive(Default)]
-pub(crate) struct Vertices {
-    pub positions: Vec<DVec3>,
-    pub normals: Option<Vec<Vec3>>,
-    pub colors: Option<Vec<Rgb8>>,
-}
-
 /// Which properties of the vertex element are read as what.
 struct VertexRoles {
     position: [usize; 3],
@@ -1073,6 +997,7 @@ impl Strip {
 mod tests {
     use super::*;
     use crate::import::test_file::TestFile;
+    use crate::scene::{Geometry, Primitives};
 
     /// Loads `bytes` as a file, checking that a mapped and a read binary
     /// body give the same geometry or the same error: every test of the

@@ -48,6 +48,7 @@ mod top;
 use std::path::PathBuf;
 
 use crate::BuildError;
+use crate::import::stream::{MeshInfo, Streamed};
 use crate::import::{ImportError, Params, expand_folders, las, load_input};
 use crate::page_writer::SpilledFile;
 use crate::progress::Progress;
@@ -133,12 +134,12 @@ pub struct Job {
 /// the inputs are all point clouds, or all triangle meshes, the build goes
 /// out of core.
 pub fn plan(inputs: &[String], params: &Params, budget: &Budget) -> Result<Plan, ImportError> {
-    let entries = survey_inputs(inputs, params)?;
+    let entries = survey_inputs(inputs, params, budget)?;
     let points: u64 = entries
         .iter()
         .map(|e| match e {
             Input::Las(source) => source.count(),
-            Input::Ply { info, .. } => info.vertices,
+            Input::Mesh { info, .. } => info.vertices,
             Input::Loaded(scene) => scene.instanced_vertex_count(),
         })
         .sum();
@@ -157,7 +158,9 @@ pub fn plan(inputs: &[String], params: &Params, budget: &Budget) -> Result<Plan,
                 .into_iter()
                 .filter_map(|e| match e {
                     Input::Loaded(scene) => Some(mesh::MeshInput::Scene(scene)),
-                    Input::Ply { path, info } => Some(mesh::MeshInput::Ply { path, info }),
+                    Input::Mesh { path, format, info } => {
+                        Some(mesh::MeshInput::File { path, format, info })
+                    }
                     Input::Las(_) => None,
                 })
                 .collect(),
@@ -181,7 +184,7 @@ fn load_all(entries: Vec<Input>, params: &Params) -> Result<Scene, ImportError> 
     for entry in entries {
         scene.merge(match entry {
             Input::Las(source) => source.load(params)?,
-            Input::Ply { path, .. } => load_input(&path.display().to_string(), params)?,
+            Input::Mesh { path, .. } => load_input(&path.display().to_string(), params)?,
             Input::Loaded(loaded) => loaded,
         });
     }
@@ -202,19 +205,22 @@ fn kind_of(entries: &[Input]) -> Kinds {
     let geometries = || {
         entries.iter().flat_map(|e| match e {
             Input::Loaded(scene) => scene.geometries.iter(),
-            Input::Las(_) | Input::Ply { .. } => [].iter(),
+            Input::Las(_) | Input::Mesh { .. } => [].iter(),
         })
     };
     let is_mesh = |g: &&crate::scene::Geometry| matches!(g.primitives, Primitives::Triangles(_));
     let has_las = entries.iter().any(|e| matches!(e, Input::Las(_)));
-    let ply = entries.iter().find_map(|e| match e {
-        Input::Ply { path, .. } => Some(path.display().to_string()),
+    let streamed = entries.iter().find_map(|e| match e {
+        Input::Mesh { path, .. } => Some(path.display().to_string()),
         _ => None,
     });
     if let Some(g) = geometries().find(|g| matches!(g.primitives, Primitives::Spheres(_))) {
         return Kinds::Other(format!("{} is made of spheres", g.name));
     }
-    let mesh = geometries().find(is_mesh).map(|g| g.name.clone()).or(ply);
+    let mesh = geometries()
+        .find(is_mesh)
+        .map(|g| g.name.clone())
+        .or(streamed);
     match mesh {
         None => Kinds::Points,
         Some(_) if !has_las && geometries().all(|g| is_mesh(&g)) => Kinds::Meshes,
@@ -230,7 +236,7 @@ pub fn plan_out_of_core(
     params: &Params,
     budget: &Budget,
 ) -> Result<Job, ImportError> {
-    let entries = survey_inputs(inputs, params)?;
+    let entries = survey_inputs(inputs, params, budget)?;
     if let Some(name) = first_mesh(&entries) {
         return Err(ImportError::Malformed {
             path: PathBuf::from(name),
@@ -245,18 +251,23 @@ pub fn plan_out_of_core(
 enum Input {
     /// A LAS or LAZ file, counted from its header, not read yet.
     Las(PointSource),
-    /// A PLY mesh, counted from its header, not read yet.
-    Ply {
+    /// A mesh file, surveyed (see [`Streamed::survey`]), not read yet.
+    Mesh {
         path: PathBuf,
-        info: crate::import::ply::PlyInfo,
+        format: Streamed,
+        info: MeshInfo,
     },
     /// Any other input, loaded whole by its importer.
     Loaded(Scene),
 }
 
-/// Each input in order: a LAS file counted from its header, or a scene
-/// loaded whole.
-fn survey_inputs(inputs: &[String], params: &Params) -> Result<Vec<Input>, ImportError> {
+/// Each input in order: a LAS file counted from its header, a mesh file
+/// surveyed, or a scene loaded whole.
+fn survey_inputs(
+    inputs: &[String],
+    params: &Params,
+    budget: &Budget,
+) -> Result<Vec<Input>, ImportError> {
     let mut entries = Vec::new();
     for input in expand_folders(inputs)? {
         let path = std::path::Path::new(&input);
@@ -273,12 +284,14 @@ fn survey_inputs(inputs: &[String], params: &Params) -> Result<Vec<Input>, Impor
                 wide: false,
             }));
         } else if file
-            && extension.as_deref() == Some("ply")
-            && let info = crate::import::ply::survey(path)?
+            && let Some(format) = Streamed::of(path)
+            && worth_surveying(path, format, budget)
+            && let info = format.survey(path)?
             && info.triangles
         {
-            entries.push(Input::Ply {
+            entries.push(Input::Mesh {
                 path: path.to_owned(),
+                format,
                 info,
             });
         } else {
@@ -288,11 +301,26 @@ fn survey_inputs(inputs: &[String], params: &Params) -> Result<Vec<Input>, Impor
     Ok(entries)
 }
 
+/// Whether a mesh file is surveyed before it is read. PLY says its counts
+/// in its header; an OFF file with colors and an OBJ file are read whole
+/// to be surveyed, so they are surveyed only when their size leaves room
+/// for more vertices than the budget builds in memory (a vertex line is at
+/// least 8 bytes: `v 0 0 0` and its newline). A file under that bound is
+/// loaded whole: a build of many such files that together pass the budget
+/// goes out of core from memory, not streamed.
+fn worth_surveying(path: &std::path::Path, format: Streamed, budget: &Budget) -> bool {
+    if format == Streamed::Ply {
+        return true;
+    }
+    let bytes = std::fs::metadata(path).map_or(u64::MAX, |m| m.len());
+    (bytes / 8).saturating_mul(IN_MEMORY_BYTES_PER_POINT) > budget.memory
+}
+
 /// The name of the first input that is not a point cloud.
 fn first_mesh(entries: &[Input]) -> Option<String> {
     entries.iter().find_map(|e| match e {
         Input::Las(_) => None,
-        Input::Ply { path, .. } => Some(path.display().to_string()),
+        Input::Mesh { path, .. } => Some(path.display().to_string()),
         Input::Loaded(scene) => scene
             .geometries
             .iter()
@@ -307,7 +335,7 @@ fn job_of(entries: Vec<Input>, budget: &Budget) -> Job {
         match entry {
             Input::Las(source) => sources.push(source),
             // Not reached: a mesh is not built with clouds.
-            Input::Ply { .. } => {}
+            Input::Mesh { .. } => {}
             // Clouds in memory are streamed from there, placed by their
             // instances.
             Input::Loaded(scene) => sources.extend(placed_clouds(scene)),

@@ -7,6 +7,7 @@ use super::super::temp::TempDir;
 use super::super::tests::{assert_alike, scratch};
 use super::super::{Budget, Job};
 use super::MeshInput;
+use crate::import::stream::Streamed;
 use crate::progress::Silent;
 use crate::scene::{Geometry, Instance, Primitives, Scene};
 use crate::spheres::leaves::{Leaf, make_leaves, unpack_normal};
@@ -232,6 +233,22 @@ fn ply_bytes(g: &Geometry, ascii: bool) -> Vec<u8> {
     out
 }
 
+/// Gives `g` random normals facing up, every `zero`th of no length.
+fn with_normals(g: &mut Geometry, seed: u64, zero: usize) {
+    let mut rnd = crate::test_random(seed);
+    g.normals = Some(
+        (0..g.positions.len())
+            .map(|i| {
+                if i % zero == 0 {
+                    glam::Vec3::ZERO
+                } else {
+                    glam::Vec3::new(rnd() as f32 - 0.5, rnd() as f32 - 0.5, 2.0)
+                }
+            })
+            .collect(),
+    );
+}
+
 /// A PLY mesh is read as a stream, a batch at a time, and its leaves are
 /// its in-memory import's: normals made unit alike, and those of no
 /// length (here every 97th) repaired from the triangles around them,
@@ -241,42 +258,132 @@ fn a_streamed_ply_mesh_has_the_leaves_of_its_import() {
     let tmp = scratch("mesh-ply");
     // More vertices than a batch (65,536), so batches meet mid-element.
     let mut g = wavy(300, 5);
-    let mut rnd = crate::test_random(6);
-    g.normals = Some(
-        (0..g.positions.len())
-            .map(|i| {
-                if i % 97 == 0 {
-                    glam::Vec3::ZERO
-                } else {
-                    glam::Vec3::new(rnd() as f32 - 0.5, rnd() as f32 - 0.5, 2.0)
-                }
-            })
-            .collect(),
-    );
+    with_normals(&mut g, 6, 97);
     for ascii in [false, true] {
         let name = if ascii { "ascii.ply" } else { "binary.ply" };
-        let path = tmp.join(name);
-        std::fs::write(&path, ply_bytes(&g, ascii)).unwrap();
-        let imported =
-            crate::import::load_input(path.to_str().unwrap(), &Default::default()).unwrap();
-        let (expected, _) = make_leaves(imported, true, &Silent);
-        let info = crate::import::ply::survey(&path).unwrap();
-        assert!(info.triangles && info.normals && info.colors);
-        let spill = tmp.join("spill");
-        let temp = TempDir::create(&spill).unwrap();
-        let input = MeshInput::Ply {
-            path: path.clone(),
-            info,
-        };
-        let (sized, _) = super::size(vec![input], &budget(0, &spill), &temp, &Silent).unwrap();
-        assert!(sized.entries.len() >= 20, "{} chunks", sized.entries.len());
-        let mut leaves = Vec::new();
-        for e in &sized.entries {
-            leaves.extend(read_leaves(&e.leaves).unwrap());
-        }
-        let (a, b) = (by_position(leaves), by_position(expected));
-        assert_eq!(a.len(), b.len(), "{name}");
-        let differ = a.iter().zip(&b).filter(|(x, y)| x != y).count();
-        assert_eq!(differ, 0, "{name}: {differ} of {} leaves differ", a.len());
+        assert_streamed_like_import(&tmp, name, &ply_bytes(&g, ascii), (true, true));
     }
+}
+
+/// Builds `bytes`, written as `name`, as a stream in chunks and checks its
+/// leaves are its in-memory import's; `(normals, colors)` are what its
+/// survey must find kept.
+fn assert_streamed_like_import(
+    tmp: &std::path::Path,
+    name: &str,
+    bytes: &[u8],
+    kept: (bool, bool),
+) {
+    let path = tmp.join(name);
+    std::fs::write(&path, bytes).unwrap();
+    let imported = crate::import::load_input(path.to_str().unwrap(), &Default::default()).unwrap();
+    let g = &imported.geometries[0];
+    assert_eq!((g.normals.is_some(), g.colors.is_some()), kept, "{name}");
+    let (expected, _) = make_leaves(imported, true, &Silent);
+    let format = Streamed::of(&path).unwrap();
+    let info = format.survey(&path).unwrap();
+    assert!(info.triangles, "{name}");
+    assert_eq!((info.normals, info.colors), kept, "{name}");
+    let spill = tmp.join("spill");
+    let temp = TempDir::create(&spill).unwrap();
+    let input = MeshInput::File {
+        path: path.clone(),
+        format,
+        info,
+    };
+    let (sized, _) = super::size(vec![input], &budget(0, &spill), &temp, &Silent).unwrap();
+    assert!(sized.entries.len() >= 20, "{} chunks", sized.entries.len());
+    let mut leaves = Vec::new();
+    for e in &sized.entries {
+        leaves.extend(read_leaves(&e.leaves).unwrap());
+    }
+    let (a, b) = (by_position(leaves), by_position(expected));
+    assert_eq!(a.len(), b.len(), "{name}");
+    let differ = a.iter().zip(&b).filter(|(x, y)| x != y).count();
+    assert_eq!(differ, 0, "{name}: {differ} of {} leaves differ", a.len());
+}
+
+/// `g` as an OFF file with normals and colors (0..255, as numbers).
+fn off_text(g: &Geometry) -> String {
+    let Primitives::Triangles(triangles) = &g.primitives else {
+        panic!("a mesh");
+    };
+    let normals = g.normals.as_ref().expect("normals");
+    let colors = g.colors.as_ref().expect("colors");
+    let mut out = format!(
+        "NCOFF\n# a comment\n{} {} 0\n",
+        g.positions.len(),
+        triangles.len()
+    );
+    for ((p, n), c) in g.positions.iter().zip(normals).zip(colors) {
+        out += &format!(
+            "{} {} {} {} {} {} {} {} {} 255\n",
+            p.x, p.y, p.z, n.x, n.y, n.z, c[0], c[1], c[2]
+        );
+    }
+    for t in triangles {
+        out += &format!("3 {} {} {}\n", t[0], t[1], t[2]);
+    }
+    out
+}
+
+/// `g` as an OBJ file: colors as 0..255 numbers on `v` lines, a table of
+/// normals in another order than the vertices, and faces whose corners
+/// name them. Every 13th face names, for its first corner, its second
+/// corner's normal instead: where that corner comes first, it wins. Every
+/// 5th face uses negative (relative) vertex indices. The vertex no face
+/// uses has no normal.
+fn obj_text(g: &Geometry) -> String {
+    let Primitives::Triangles(triangles) = &g.primitives else {
+        panic!("a mesh");
+    };
+    let normals = g.normals.as_ref().expect("normals");
+    let colors = g.colors.as_ref().expect("colors");
+    let n = g.positions.len();
+    let mut out = String::from("# wavy\no wavy\n");
+    for (p, c) in g.positions.iter().zip(colors) {
+        out += &format!("v {} {} {} {} {} {}\n", p.x, p.y, p.z, c[0], c[1], c[2]);
+    }
+    // The table holds vertex i's normal at n - 1 - i.
+    for v in normals.iter().rev() {
+        out += &format!("vn {} {} {}\n", v.x, v.y, v.z);
+    }
+    let normal_of = |v: u32| n - v as usize;
+    for (k, t) in triangles.iter().enumerate() {
+        let vertex = |v: u32| {
+            if k % 5 == 0 {
+                format!("-{}", n - v as usize)
+            } else {
+                (v + 1).to_string()
+            }
+        };
+        let first_normal = if k % 13 == 0 { t[1] } else { t[0] };
+        out += &format!(
+            "f {}//{} {}//{} {}//{}\n",
+            vertex(t[0]),
+            normal_of(first_normal),
+            vertex(t[1]),
+            normal_of(t[1]),
+            vertex(t[2]),
+            normal_of(t[2])
+        );
+    }
+    out
+}
+
+/// OFF and OBJ meshes are read as streams too, and their leaves are their
+/// imports': colors scaled alike (0..255 here, which only the whole file
+/// tells), and OBJ's normals given by the first face corner that names
+/// each vertex, across chunk borders.
+#[test]
+fn streamed_off_and_obj_meshes_have_the_leaves_of_their_imports() {
+    let tmp = scratch("mesh-off-obj");
+    let mut g = wavy(300, 9);
+    with_normals(&mut g, 10, 89);
+    assert_streamed_like_import(&tmp, "wavy.off", off_text(&g).as_bytes(), (true, true));
+    assert_streamed_like_import(&tmp, "wavy.obj", obj_text(&g).as_bytes(), (true, true));
+    // Without a normal on one corner, an OBJ file's normals are all
+    // computed, as its import computes them.
+    let text = obj_text(&g) + "f 1 2 3\n";
+    assert_streamed_like_import(&tmp, "no-normals.obj", text.as_bytes(), (false, true));
 }

@@ -13,10 +13,10 @@ use std::io::{self, BufReader, BufWriter, Read, Write};
 use std::path::{Path, PathBuf};
 
 use glam::{DAffine3, DVec3, Vec3};
-use memmap2::Mmap;
+use memmap2::{Mmap, MmapMut};
 
 use crate::import::ImportError;
-use crate::import::ply::{self, BodyOut, PlyInfo, Vertices};
+use crate::import::stream::{BodyOut, CornerNormals, MeshInfo, Streamed, Vertices};
 
 use super::super::io_error;
 use super::super::temp::TempDir;
@@ -52,8 +52,12 @@ pub(crate) enum MeshInput {
     /// Meshes in memory (generated, or read whole by their importer),
     /// placed by their instances.
     Scene(Scene),
-    /// A PLY mesh, read as a stream.
-    Ply { path: PathBuf, info: PlyInfo },
+    /// A mesh file (PLY, OFF or OBJ), read as a stream.
+    File {
+        path: PathBuf,
+        format: Streamed,
+        info: MeshInfo,
+    },
 }
 
 impl MeshInput {
@@ -61,7 +65,7 @@ impl MeshInput {
     pub(crate) fn vertices(&self) -> u64 {
         match self {
             Self::Scene(scene) => scene.instanced_vertex_count(),
-            Self::Ply { info, .. } => info.vertices,
+            Self::File { info, .. } => info.vertices,
         }
     }
 }
@@ -89,7 +93,7 @@ impl Channels {
                         channels.normals &= g.normals.is_some();
                     }
                 }
-                MeshInput::Ply { info, .. } => {
+                MeshInput::File { info, .. } => {
                     channels.colors |= info.colors;
                     channels.normals &= info.normals;
                 }
@@ -137,22 +141,8 @@ pub(crate) fn write(
     for input in inputs {
         match input {
             MeshInput::Scene(scene) => out.scene(&scene, progress)?,
-            MeshInput::Ply { path, info } => {
-                let base = out.vertices;
-                let mut sink = PlySink {
-                    out: &mut out,
-                    path: &path,
-                    base,
-                    triangles: Vec::new(),
-                    progress,
-                };
-                ply::stream(&path, &mut sink).map_err(|e| BuildError::Invalid(e.to_string()))?;
-                if out.vertices - base != info.vertices {
-                    return Err(BuildError::Invalid(format!(
-                        "{}: the file changed while it was being read",
-                        path.display()
-                    )));
-                }
+            MeshInput::File { path, format, info } => {
+                out.file(&path, format, &info, temp, progress)?;
             }
         }
     }
@@ -181,10 +171,10 @@ pub(crate) fn write(
     })
 }
 
-/// A PLY file's body written as it is read: its normals made unit as the
-/// importer makes them (unusable ones kept, and repaired in their chunk),
-/// its positions checked as the importer checks them.
-struct PlySink<'a> {
+/// A file's body written as it is read: its normals made unit as the
+/// importers make them (unusable ones kept, and repaired in their chunk),
+/// its positions checked as the importers check them.
+struct BodySink<'a> {
     out: &'a mut Writers,
     path: &'a Path,
     /// The index of the file's first vertex among all the build's.
@@ -193,7 +183,7 @@ struct PlySink<'a> {
     progress: &'a dyn Progress,
 }
 
-impl BodyOut for PlySink<'_> {
+impl BodyOut for BodySink<'_> {
     fn batch(&self) -> u64 {
         1 << 16
     }
@@ -209,9 +199,7 @@ impl BodyOut for PlySink<'_> {
                 return Err(unbuildable(self.path, self.out.vertices - self.base, p));
             }
             let color = colors.as_ref().map_or(DEFAULT_COLOR, |c| c[i]);
-            let normal = normals
-                .as_ref()
-                .map_or(Vec3::Z, |n| unit_normal(n[i]).unwrap_or(n[i]));
+            let normal = normals.as_ref().map(|n| unit_normal(n[i]).unwrap_or(n[i]));
             self.out
                 .vertex(p, color, normal)
                 .map_err(|e| ImportError::io(Path::new("temporary files"), e))?;
@@ -233,6 +221,119 @@ impl BodyOut for PlySink<'_> {
                 .triangle(t.map(|v| base + v))
                 .map_err(|e| ImportError::io(Path::new("temporary files"), e))?;
         }
+        Ok(())
+    }
+}
+
+/// An OBJ file's normals, as its faces give them to its vertices (see
+/// [`CornerNormals`]), gathered on disk: the table of normals written in
+/// order, and for each vertex the table's index of its first corner's
+/// normal (plus one; zero for none yet), in a map of the file's vertex
+/// count. Both may be as large as the vertices themselves.
+struct CornerFiles {
+    table: BufWriter<File>,
+    table_path: PathBuf,
+    table_len: u64,
+    first: MmapMut,
+    first_path: PathBuf,
+}
+
+impl CornerFiles {
+    fn create(temp: &TempDir, vertices: u64) -> io::Result<Self> {
+        let table_path = temp.file("obj.normals");
+        let first_path = temp.file("obj.corners");
+        let first = File::options()
+            .read(true)
+            .write(true)
+            .create(true)
+            .truncate(true)
+            .open(&first_path)?;
+        first.set_len(vertices * 4)?;
+        // SAFETY: the file is this build's, in its locked temporary folder,
+        // sized above and written only through this map (see `write`).
+        let first = unsafe { MmapMut::map_mut(&first) }?;
+        Ok(Self {
+            table: BufWriter::with_capacity(1 << 20, File::create(&table_path)?),
+            table_path,
+            table_len: 0,
+            first,
+            first_path,
+        })
+    }
+
+    /// Writes each vertex's normal, in order, made unit as the importer
+    /// makes it (a vertex no corner named gets a zero one, repaired in its
+    /// chunk as the importer repairs it), and removes the files.
+    fn write_normals(self, out: &mut Writers) -> io::Result<()> {
+        let table = self.table.into_inner().map_err(|e| e.into_error())?;
+        drop(table);
+        let table = if self.table_len == 0 {
+            None
+        } else {
+            // SAFETY: as in `write`: this build's own file, written above.
+            Some(unsafe { Mmap::map(&File::open(&self.table_path)?) }?)
+        };
+        for slot in self.first.chunks_exact(4) {
+            let index = u32::from_le_bytes(slot.try_into().unwrap_or_default());
+            let n = match (index.checked_sub(1), &table) {
+                (Some(i), Some(table)) => {
+                    let at = i as usize * NORMAL_BYTES;
+                    let b = table.get(at..at + NORMAL_BYTES).ok_or_else(|| {
+                        io::Error::other("an OBJ corner names a normal past the table")
+                    })?;
+                    Vec3::new(f32_at(b, 0), f32_at(b, 4), f32_at(b, 8))
+                }
+                _ => Vec3::ZERO,
+            };
+            out.normal(unit_normal(n).unwrap_or(n))?;
+        }
+        drop(table);
+        drop(self.first);
+        std::fs::remove_file(&self.table_path)?;
+        std::fs::remove_file(&self.first_path)
+    }
+}
+
+impl CornerNormals for CornerFiles {
+    fn table(&mut self, normals: &[Vec3]) -> Result<(), ImportError> {
+        for n in normals {
+            for v in n.to_array() {
+                self.table
+                    .write_all(&v.to_le_bytes())
+                    .map_err(|e| ImportError::io(Path::new("temporary files"), e))?;
+            }
+        }
+        self.table_len += normals.len() as u64;
+        Ok(())
+    }
+
+    fn corners(&mut self, corners: &[(u32, u32)]) -> Result<(), ImportError> {
+        for &(v, n) in corners {
+            let at = v as usize * 4;
+            let changed = || {
+                ImportError::io(
+                    Path::new("temporary files"),
+                    io::Error::other("the OBJ file changed while it was being read"),
+                )
+            };
+            let slot = self.first.get_mut(at..at + 4).ok_or_else(changed)?;
+            if slot == [0; 4] {
+                slot.copy_from_slice(&(n + 1).to_le_bytes());
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Corner normals dropped: a file whose normals the build does not keep.
+struct NoCorners;
+
+impl CornerNormals for NoCorners {
+    fn table(&mut self, _: &[Vec3]) -> Result<(), ImportError> {
+        Ok(())
+    }
+
+    fn corners(&mut self, _: &[(u32, u32)]) -> Result<(), ImportError> {
         Ok(())
     }
 }
@@ -261,6 +362,47 @@ struct Writers {
 }
 
 impl Writers {
+    /// Writes the mesh file at `path`, read as a stream.
+    fn file(
+        &mut self,
+        path: &Path,
+        format: Streamed,
+        info: &MeshInfo,
+        temp: &TempDir,
+        progress: &dyn Progress,
+    ) -> Result<(), BuildError> {
+        let base = self.vertices;
+        // OBJ normals come by face corner, known only at the file's end.
+        let mut corners = (format == Streamed::Obj && info.normals && self.normals.is_some())
+            .then(|| CornerFiles::create(temp, info.vertices))
+            .transpose()
+            .map_err(io_error)?;
+        let mut sink = BodySink {
+            out: self,
+            path,
+            base,
+            triangles: Vec::new(),
+            progress,
+        };
+        let corner_out: &mut dyn CornerNormals = match &mut corners {
+            Some(files) => files,
+            None => &mut NoCorners,
+        };
+        format
+            .stream(path, info, &mut sink, corner_out)
+            .map_err(|e| BuildError::Invalid(e.to_string()))?;
+        if self.vertices - base != info.vertices {
+            return Err(BuildError::Invalid(format!(
+                "{}: the file changed while it was being read",
+                path.display()
+            )));
+        }
+        if let Some(corners) = corners {
+            corners.write_normals(self).map_err(io_error)?;
+        }
+        Ok(())
+    }
+
     /// Writes every instance of every mesh of `scene`, placed.
     fn scene(&mut self, scene: &Scene, progress: &dyn Progress) -> Result<(), BuildError> {
         for instance in &scene.instances {
@@ -286,7 +428,7 @@ impl Writers {
                     g.colors.as_ref().map_or(DEFAULT_COLOR, |c| c[i]),
                     g.normals
                         .as_ref()
-                        .map_or(Vec3::Z, |n| placed_normal(n[i], place, normal_from_local)),
+                        .map(|n| placed_normal(n[i], place, normal_from_local)),
                 )
                 .map_err(io_error)?;
             }
@@ -298,7 +440,9 @@ impl Writers {
         Ok(())
     }
 
-    fn vertex(&mut self, p: DVec3, color: Rgb8, normal: Vec3) -> io::Result<()> {
+    /// Writes a vertex; its normal, where it comes with it (an OBJ
+    /// file's come after its vertices, by [`Writers::normal`]).
+    fn vertex(&mut self, p: DVec3, color: Rgb8, normal: Option<Vec3>) -> io::Result<()> {
         self.vertices += 1;
         self.bounds = (self.bounds.0.min(p), self.bounds.1.max(p));
         for v in p.to_array() {
@@ -307,6 +451,14 @@ impl Writers {
         if let Some(out) = &mut self.colors {
             out.write_all(&color)?;
         }
+        if let Some(n) = normal {
+            self.normal(n)?;
+        }
+        Ok(())
+    }
+
+    /// Writes the next vertex normal, where the build keeps normals.
+    fn normal(&mut self, normal: Vec3) -> io::Result<()> {
         if let Some(out) = &mut self.normals {
             for v in normal.to_array() {
                 out.write_all(&v.to_le_bytes())?;
