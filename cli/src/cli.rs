@@ -71,11 +71,23 @@ pub enum Command {
         #[arg(long)]
         out: PathBuf,
     },
-    /// Build the default scene, serve it in-process, fly a client through it.
+    /// Build the default scene, serve it in-process with the browser
+    /// viewer, fly a client through it and write what it measured; then
+    /// keep serving (and open the window viewer where there is a display)
+    /// until the window closes or Ctrl-C.
     Demo {
         /// Folder for the scene file, frames, CSV and summary.
         #[arg(long, default_value = "farfield-demo")]
         out: PathBuf,
+        /// Address to serve on (a port already taken: another, printed).
+        #[arg(long, default_value = "127.0.0.1:7878")]
+        listen: std::net::SocketAddr,
+        /// Stop once the files are written (for scripts).
+        #[arg(long)]
+        exit: bool,
+        /// Do not open the window viewer (the browser's is still served).
+        #[arg(long)]
+        no_window: bool,
     },
     /// Compare two PNGs: RMSE, PSNR and wrong-pixel fraction (exit 2 if sizes differ).
     Compare {
@@ -546,7 +558,28 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
             repeats,
             json,
         } => commands::measure::bench_stream(&scene, clients, seconds, cache_mib, repeats, json),
-        Command::Demo { out } => commands::demo::print(out),
+        Command::Demo {
+            out,
+            listen,
+            exit,
+            no_window,
+        } => {
+            let after = if exit {
+                commands::demo::AfterDemo::Exit
+            } else {
+                commands::demo::AfterDemo::Serve { window: !no_window }
+            };
+            commands::demo::print(out, listen, after, |url| {
+                let args = ["view", "--server", url, "--scene", "island"];
+                let Cli {
+                    command: Command::View(args),
+                } = Cli::try_parse_from(std::iter::once("farfield").chain(args))?
+                else {
+                    anyhow::bail!("not a view command");
+                };
+                view_job(*args)
+            })
+        }
         Command::Path { input, params, out } => commands::path::run(&input, &params, &out),
         Command::Traverse {
             file,

@@ -119,8 +119,9 @@ pub struct ServerConfig {
     pub access: Access,
     /// Serve HTTPS and `wss://` with this certificate; plain HTTP without.
     pub tls: Option<TlsFiles>,
-    /// The browser viewer's built files; `None` looks in the usual places
-    /// ([`web_assets::find_dir`]).
+    /// A folder of the browser viewer's built files; `None` serves the
+    /// viewer built into this binary, or looks in the usual places
+    /// ([`web_assets::find`]).
     pub web: Option<PathBuf>,
 }
 
@@ -175,8 +176,8 @@ pub(crate) struct AppState {
     pub shutdown: watch::Receiver<bool>,
     /// Signalled whenever a session ends.
     pub session_ended: Notify,
-    /// The browser viewer's files, if found.
-    pub web_dir: Option<PathBuf>,
+    /// The browser viewer's files, if this server has them.
+    pub web: Option<web_assets::WebViewer>,
     /// Demo sessions: presenters and their followers.
     pub demo: Arc<demo::DemoSessions>,
 }
@@ -216,10 +217,15 @@ pub async fn start(config: ServerConfig) -> Result<RunningServer, ServeError> {
         tls,
         web,
     } = config;
-    let web_dir = web.or_else(web_assets::find_dir);
-    match &web_dir {
-        Some(dir) => tracing::info!("browser viewer from {}", dir.display()),
-        None => tracing::info!("no browser viewer found (build it with web/build)"),
+    let web = web
+        .map(web_assets::WebViewer::Folder)
+        .or_else(web_assets::find);
+    match &web {
+        Some(viewer) => tracing::info!("serving {}", viewer.describe()),
+        None => tracing::warn!(
+            "no browser viewer: {} (web/build builds one into web/dist)",
+            web_assets::not_embedded()
+        ),
     }
     let cert_names = match &tls {
         Some(files) => tls::read_certs(&files.cert)
@@ -298,7 +304,7 @@ pub async fn start(config: ServerConfig) -> Result<RunningServer, ServeError> {
         lag: lag::Lag::new(),
         shutdown: shutdown_rx.clone(),
         session_ended: Notify::new(),
-        web_dir,
+        web,
         demo: Arc::new(demo::DemoSessions::new(&limits)),
     });
     let admission = Admission::new(

@@ -122,11 +122,13 @@ pub(crate) async fn viewer(
         )
             .into_response();
     }
-    if let Err(why) = web_assets::ready(app.web_dir.as_deref()) {
+    if let Err(why) = web_assets::ready(app.web.as_ref()) {
         let body = format!(
-            "<h1>The browser viewer is not built</h1><p>{}</p><p>Build it with \
-             <code>web/build</code> in the farfield checkout, or start the server with \
-             <code>--web DIR</code>. Back to {back}.</p>",
+            "<h1>The browser viewer is not built</h1><p>{}</p><p>A server built with the \
+             wasm32 target carries it (<code>rustup target add wasm32-unknown-unknown</code>, \
+             then build the server again); or build it with <code>web/build</code> in the \
+             farfield checkout, or start the server with <code>--web DIR</code>. Back to \
+             {back}.</p>",
             escape(&why)
         );
         return (

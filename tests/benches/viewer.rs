@@ -34,6 +34,7 @@ use std::time::{Duration, Instant};
 use anyhow::Context;
 use farfield_builder::import::{Params, load_input};
 use farfield_builder::{BuildOptions, build_spheres};
+use farfield_memory_server::web_assets::{self, WebViewer};
 use serde_json::Value;
 
 use webdriver::Browser;
@@ -65,9 +66,17 @@ fn main() -> anyhow::Result<()> {
     let only_memory = std::env::var_os("ONLY_MEMORY").is_some();
     let data =
         farfield_tests::shared_data().context("the viewer benchmarks need ../shared/data")?;
-    let web = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../web/dist");
-    farfield_memory_server::web_assets::ready(Some(&web))
-        .map_err(|why| anyhow::anyhow!("the built viewer ({why}): run web/build"))?;
+    let viewer = web_assets::find();
+    web_assets::ready(viewer.as_ref()).map_err(|why| {
+        anyhow::anyhow!(
+            "the viewer ({why}; {}): build with the wasm32 target, or run web/build",
+            web_assets::not_embedded()
+        )
+    })?;
+    let web = match &viewer {
+        Some(WebViewer::Folder(dir)) => Some(dir.clone()),
+        _ => None,
+    };
     let dir = farfield_tests::scratch("bench-viewer");
     write_scene(
         &dir,
@@ -83,7 +92,7 @@ fn main() -> anyhow::Result<()> {
     )?;
     let island_mb = std::fs::metadata(&island)?.len() as f64 / 1e6;
 
-    sizes(&web)?;
+    sizes(viewer.as_ref())?;
     let rt = tokio::runtime::Builder::new_multi_thread()
         .worker_threads(2)
         .enable_all()
@@ -91,7 +100,7 @@ fn main() -> anyhow::Result<()> {
     let server = rt
         .block_on(farfield_memory_server::start(
             farfield_memory_server::ServerConfig {
-                web: Some(web.clone()),
+                web: web.clone(),
                 ..farfield_memory_server::ServerConfig::new(&dir, ([127, 0, 0, 1], 0).into())
             },
         ))
@@ -135,20 +144,37 @@ fn write_scene(
     Ok(path)
 }
 
-fn sizes(web: &Path) -> anyhow::Result<()> {
-    for file in farfield_memory_server::web_assets::FILES {
-        let path = web.join(file);
-        let raw = std::fs::metadata(&path)?.len();
-        let gz = Command::new("gzip")
+fn sizes(viewer: Option<&WebViewer>) -> anyhow::Result<()> {
+    let gzipped = |bytes: &[u8]| -> anyhow::Result<usize> {
+        use std::io::Write;
+        let mut gzip = Command::new("gzip")
             .args(["-9", "-c"])
-            .arg(&path)
-            .output()
-            .map(|o| o.stdout.len())
-            .unwrap_or(0);
+            .stdin(Stdio::piped())
+            .stdout(Stdio::piped())
+            .spawn()?;
+        gzip.stdin
+            .take()
+            .context("gzip's input")?
+            .write_all(bytes)?;
+        Ok(gzip.wait_with_output()?.stdout.len())
+    };
+    for file in web_assets::FILES {
+        let bytes = match viewer {
+            Some(WebViewer::Folder(dir)) => std::fs::read(dir.join(file))?,
+            Some(WebViewer::Embedded(v)) if file.ends_with(".wasm") => v.wasm.to_vec(),
+            Some(WebViewer::Embedded(v)) => v.js.to_vec(),
+            None => anyhow::bail!("no viewer"),
+        };
         println!(
             "size {file}: {:.2} MB raw, {:.2} MB gzipped",
-            raw as f64 / 1e6,
-            gz as f64 / 1e6
+            bytes.len() as f64 / 1e6,
+            gzipped(&bytes)? as f64 / 1e6
+        );
+    }
+    if let Some(WebViewer::Embedded(v)) = viewer {
+        println!(
+            "size served: {:.2} MB of gzipped wasm (built in)",
+            v.wasm_gzip.len() as f64 / 1e6
         );
     }
     Ok(())

@@ -1,10 +1,14 @@
 //! `farfield demo`: the whole system on the built-in scene, in one process.
 //!
 //! Builds `gen:island` (once; the file is reused on later runs), starts an
-//! embedded memory server on a loopback port, flies a client along a
-//! built-in path while pages stream, lets the last view refine, sweeps the
-//! splat threshold against the 1-pixel reference (`farfield bench`) and
-//! writes the frames, a per-frame CSV, the sweep's report and a summary.
+//! embedded memory server, with the browser viewer built into it, and
+//! prints where to browse the scene; flies a client along a built-in path
+//! while pages stream, lets the last view refine, sweeps the splat
+//! threshold against the 1-pixel reference (`farfield bench`) and writes
+//! the frames, a per-frame CSV, the sweep's report and a summary. Then it
+//! keeps serving, and opens the window viewer where there is a display,
+//! until the window closes or Ctrl-C (`--exit` ends it once the files are
+//! written, as scripts want).
 
 use std::fmt::Write as _;
 use std::net::SocketAddr;
@@ -69,21 +73,107 @@ pub fn ensure_scene(dir: &Path) -> anyhow::Result<(PathBuf, bool)> {
     Ok((path, true))
 }
 
+/// Runs the demo against a server of its own on a free loopback port,
+/// stopped once the files are written.
 pub fn run(job: &DemoJob) -> anyhow::Result<DemoSummary> {
-    std::fs::create_dir_all(&job.out).with_context(|| format!("creating {}", job.out.display()))?;
-    let (scene, built) = ensure_scene(&job.out)?;
-    let runtime = tokio::runtime::Builder::new_multi_thread()
-        .worker_threads(2)
-        .enable_all()
-        .build()?;
-    let config = farfield_memory_server::ServerConfig {
-        cache_bytes: 64 << 20,
-        ..farfield_memory_server::ServerConfig::new(&job.out, SocketAddr::from(([127, 0, 0, 1], 0)))
-    };
-    let server = runtime
-        .block_on(farfield_memory_server::start(config))
-        .context("starting the embedded server")?;
-    let url = format!("http://{}", server.local_addr());
+    let demo = Served::start(job, SocketAddr::from(([127, 0, 0, 1], 0)))?;
+    let summary = demo.run(job)?;
+    demo.stop()?;
+    Ok(summary)
+}
+
+/// The demo's scene, built, and served by a memory server in this process.
+struct Served {
+    runtime: tokio::runtime::Runtime,
+    server: farfield_memory_server::RunningServer,
+    scene: PathBuf,
+    built: bool,
+}
+
+impl Served {
+    /// Builds the scene into `job.out` if needed and serves that folder on
+    /// `listen`; on a port already taken, on a free one instead.
+    fn start(job: &DemoJob, listen: SocketAddr) -> anyhow::Result<Self> {
+        std::fs::create_dir_all(&job.out)
+            .with_context(|| format!("creating {}", job.out.display()))?;
+        let (scene, built) = ensure_scene(&job.out)?;
+        let runtime = tokio::runtime::Builder::new_multi_thread()
+            .worker_threads(2)
+            .enable_all()
+            .build()?;
+        let config = |listen| farfield_memory_server::ServerConfig {
+            cache_bytes: 64 << 20,
+            ..farfield_memory_server::ServerConfig::new(&job.out, listen)
+        };
+        let server = match runtime.block_on(farfield_memory_server::start(config(listen))) {
+            Ok(server) => server,
+            Err(e) if listen.port() != 0 => {
+                eprintln!("{listen} is not free ({e}); serving on another port");
+                let free = SocketAddr::new(listen.ip(), 0);
+                runtime
+                    .block_on(farfield_memory_server::start(config(free)))
+                    .context("starting the embedded server")?
+            }
+            Err(e) => return Err(e).context("starting the embedded server"),
+        };
+        Ok(Self {
+            runtime,
+            server,
+            scene,
+            built,
+        })
+    }
+
+    /// The server's address, `http://IP:PORT`.
+    fn url(&self) -> String {
+        format!("http://{}", self.server.local_addr())
+    }
+
+    /// Where a browser shows the scene.
+    fn browser_url(&self) -> String {
+        format!("{}/view/island", self.url())
+    }
+
+    /// Runs until Ctrl-C (SIGINT) or SIGTERM.
+    fn wait_for_interrupt(&self) -> anyhow::Result<()> {
+        self.runtime.block_on(async {
+            #[cfg(unix)]
+            {
+                use tokio::signal::unix::{SignalKind, signal};
+                let mut term = signal(SignalKind::terminate())?;
+                tokio::select! {
+                    r = tokio::signal::ctrl_c() => r,
+                    _ = term.recv() => Ok(()),
+                }
+            }
+            #[cfg(not(unix))]
+            tokio::signal::ctrl_c().await
+        })?;
+        Ok(())
+    }
+
+    fn stop(self) -> anyhow::Result<()> {
+        self.runtime
+            .block_on(self.server.shutdown())
+            .context("stopping the embedded server")?;
+        Ok(())
+    }
+
+    /// The demo's flight, sweep and files, against this server.
+    fn run(&self, job: &DemoJob) -> anyhow::Result<DemoSummary> {
+        let (scene, built) = (self.scene.clone(), self.built);
+        let url = self.url();
+        fly_and_measure(job, &url, scene, built)
+    }
+}
+
+fn fly_and_measure(
+    job: &DemoJob,
+    url: &str,
+    scene: PathBuf,
+    built: bool,
+) -> anyhow::Result<DemoSummary> {
+    let url = url.to_owned();
     let mut renderer = Renderer::new_headless(job.width, job.height)?;
     let started = Instant::now();
     let mut viewer = Viewer::open_remote(&url, "island", SessionOptions::default(), 512 << 20)?;
@@ -140,9 +230,6 @@ pub fn run(job: &DemoJob) -> anyhow::Result<DemoSummary> {
         std::slice::from_ref(&sweep.out),
         &job.out.join("report"),
     )?;
-    runtime
-        .block_on(server.shutdown())
-        .context("stopping the embedded server")?;
     write_csv(&job.out.join("frames.csv"), &stats)?;
     let first = stats.first().map_or(0.0, |s| s.time_ms);
     let bytes = stats.last().map_or(0, |s| s.bytes_received);
@@ -207,12 +294,57 @@ pub fn run(job: &DemoJob) -> anyhow::Result<DemoSummary> {
     })
 }
 
-/// `farfield demo`: runs the demo into `out` and prints its summary.
-pub fn print(out: PathBuf) -> anyhow::Result<()> {
-    let summary = run(&DemoJob {
+/// How `farfield demo` ends once its files are written.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum AfterDemo {
+    /// Stop at once.
+    Exit,
+    /// Keep serving until Ctrl-C; open the window viewer too where there
+    /// is a display (and `window` is set), and stop when it closes.
+    Serve { window: bool },
+}
+
+/// `farfield demo`: runs the demo into `out` against a server on `listen`,
+/// printing where to browse the scene first and the summary after; then
+/// what `after` says (`view` makes the window viewer's job for the
+/// server's address, as `farfield view` would).
+pub fn print(
+    out: PathBuf,
+    listen: SocketAddr,
+    after: AfterDemo,
+    view: impl FnOnce(&str) -> anyhow::Result<super::view::ViewJob>,
+) -> anyhow::Result<()> {
+    let job = DemoJob {
         out,
         ..Default::default()
-    })?;
+    };
+    let demo = Served::start(&job, listen)?;
+    let browse = demo.browser_url();
+    println!(
+        "farfield demo: serving {} at {}",
+        job.out.display(),
+        demo.url()
+    );
+    println!("browse the island: {browse}");
+    let summary = demo.run(&job)?;
     print!("{}", summary.text);
-    Ok(())
+    let AfterDemo::Serve { window } = after else {
+        return demo.stop();
+    };
+    if window && has_display() {
+        println!("browse the island: {browse} (the window viewer is open; close it to stop)");
+        let shown = view(&demo.url()).and_then(super::view::run);
+        demo.stop()?;
+        return shown;
+    }
+    println!("browse the island: {browse} (Ctrl-C to stop)");
+    demo.wait_for_interrupt()?;
+    demo.stop()
+}
+
+/// Whether a window can open: an X11 or Wayland display is named.
+fn has_display() -> bool {
+    ["DISPLAY", "WAYLAND_DISPLAY"]
+        .iter()
+        .any(|v| std::env::var_os(v).is_some_and(|d| !d.is_empty()))
 }

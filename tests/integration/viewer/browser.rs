@@ -13,6 +13,7 @@ use std::path::PathBuf;
 use std::sync::Mutex;
 use std::time::Duration;
 
+use farfield_memory_server::web_assets::{self, WebViewer};
 use farfield_memory_server::{RunningServer, ServerConfig, start};
 use farfield_tests::scratch;
 use serde_json::Value;
@@ -35,14 +36,16 @@ const REPORT: &str = "const c = document.getElementById('farfield'); \
             message: document.getElementById('message').innerText, \
             status: c.dataset.status || null, hash: location.hash}";
 
-/// The viewer's built files, or `None` (having said why) when absent.
-fn web_dir() -> Option<PathBuf> {
-    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../web/dist");
-    match farfield_memory_server::web_assets::ready(Some(&dir)) {
-        Ok(()) => Some(dir),
+/// The browser viewer the server finds (the one built into it, where it
+/// could be built), or `None` (having said why) when it has none.
+fn web_dir() -> Option<WebViewer> {
+    let viewer = web_assets::find();
+    match web_assets::ready(viewer.as_ref()) {
+        Ok(()) => viewer,
         Err(why) => {
             missing(&format!(
-                "the browser tests need the built viewer ({why}): run web/build"
+                "the browser tests need the viewer ({why}; {}): build with the wasm32 target, or run web/build",
+                web_assets::not_embedded()
             ));
             None
         }
@@ -50,14 +53,14 @@ fn web_dir() -> Option<PathBuf> {
 }
 
 /// The tools and files the browser tests need, or `None` when a tool is missing.
-fn setup(name: &str) -> Option<(PathBuf, PathBuf, PathBuf)> {
+fn setup(name: &str) -> Option<(PathBuf, PathBuf, WebViewer)> {
     let (dir, web) = browser_ready(name)?;
     let bunny = bunny_in(&dir)?;
     Some((dir, bunny, web))
 }
 
 /// A scratch folder and the built viewer, or `None` when a tool is missing.
-fn browser_ready(name: &str) -> Option<(PathBuf, PathBuf)> {
+fn browser_ready(name: &str) -> Option<(PathBuf, WebViewer)> {
     for tool in ["chromium", "chromedriver"] {
         if !have(tool) {
             missing(&format!(
@@ -70,9 +73,12 @@ fn browser_ready(name: &str) -> Option<(PathBuf, PathBuf)> {
     Some((scratch(name), web))
 }
 
-async fn serve(dir: &std::path::Path, web: &std::path::Path, listen: SocketAddr) -> RunningServer {
+async fn serve(dir: &std::path::Path, web: &WebViewer, listen: SocketAddr) -> RunningServer {
     start(ServerConfig {
-        web: Some(web.to_owned()),
+        web: match web {
+            WebViewer::Folder(dir) => Some(dir.clone()),
+            WebViewer::Embedded(_) => None,
+        },
         ..ServerConfig::new(dir, listen)
     })
     .await
@@ -267,7 +273,8 @@ fn the_browser_draws_plp_on_the_budget_in_its_address() {
 fn an_unknown_scene_gets_a_page_that_links_back_to_the_list() {
     let dir = scratch("viewer-unknown");
     let rt = runtime();
-    let server = rt.block_on(serve(&dir, &dir, "127.0.0.1:0".parse().unwrap()));
+    let empty = WebViewer::Folder(dir.clone());
+    let server = rt.block_on(serve(&dir, &empty, "127.0.0.1:0".parse().unwrap()));
     let (status, body) = rt.block_on(crate::serve::support::http_get(
         server.local_addr(),
         "/view/nope%3Cb%3E",

@@ -8,6 +8,7 @@
 //! `.ci/run` sets; elsewhere a missing tool skips the test, saying so.
 
 mod browser;
+mod first_command;
 mod webdriver;
 mod window;
 

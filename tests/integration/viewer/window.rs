@@ -36,7 +36,7 @@ fn viewer_command(display: &str, args: &str) -> Command {
 }
 
 /// The viewer's process, killed when dropped.
-struct ViewerProcess {
+pub(super) struct ViewerProcess {
     child: Child,
     lines: Receiver<String>,
 }
@@ -50,7 +50,7 @@ impl Drop for ViewerProcess {
 
 impl ViewerProcess {
     /// `farfield ARGS` (tab-separated) in a child on `display`.
-    fn spawn(display: &str, args: &str) -> Self {
+    pub(super) fn spawn(display: &str, args: &str) -> Self {
         let mut child = viewer_command(display, args)
             .stdout(Stdio::piped())
             .stderr(Stdio::inherit())
@@ -69,7 +69,7 @@ impl ViewerProcess {
     }
 
     /// The next line starting with `prefix`, without it.
-    fn next(&mut self, prefix: &str) -> String {
+    pub(super) fn next(&mut self, prefix: &str) -> String {
         let started = Instant::now();
         while started.elapsed() < WAIT {
             match self.lines.recv_timeout(Duration::from_millis(200)) {
@@ -91,6 +91,17 @@ impl ViewerProcess {
         panic!("no {prefix:?} from the viewer in {WAIT:?}");
     }
 
+    /// Interrupts the child as Ctrl-C does; whether it then ended as its
+    /// command should, with success, having run its entry point.
+    pub(super) fn interrupt(&mut self) -> bool {
+        // SAFETY: a plain signal to our own child, which has not been
+        // waited for (its pid is still its own).
+        unsafe { libc::kill(self.child.id() as libc::pid_t, libc::SIGINT) };
+        let status = self.child.wait().expect("wait for the child");
+        let rest: Vec<String> = self.lines.iter().collect();
+        status.success() && farfield_tests::child_ran(rest.join("\n").as_bytes())
+    }
+
     /// Waits for the next refined view: its camera and the window's picture.
     fn refined(&mut self) -> (String, Vec<u8>) {
         let camera = self.next("refined camera=");
@@ -101,7 +112,7 @@ impl ViewerProcess {
     }
 }
 
-fn xdotool(display: &str, args: &[&str]) -> String {
+pub(super) fn xdotool(display: &str, args: &[&str]) -> String {
     let out = Command::new("xdotool")
         .args(args)
         .env("DISPLAY", display)
