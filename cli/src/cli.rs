@@ -196,6 +196,8 @@ pub struct ViewArgs {
     pub threshold: f64,
     #[arg(long, value_enum, default_value = "square")]
     pub kernel: KernelArg,
+    #[command(flatten)]
+    pub edl: EdlArgs,
     /// Most nodes a frame draws (0: no budget).
     #[arg(long, default_value_t = 0)]
     pub budget: u64,
@@ -428,10 +430,45 @@ pub struct BenchPlpArgs {
     pub json: bool,
 }
 
+/// Eye-dome lighting over splats (Potree's point-cloud shading).
+#[derive(Debug, Clone, Copy, clap::Args)]
+pub struct EdlArgs {
+    /// Shade splats with eye-dome lighting: depth steps darkened,
+    /// silhouettes outlined.
+    #[arg(long)]
+    pub edl: bool,
+    /// Its strength (implies --edl).
+    #[arg(long, value_parser = parse_non_negative)]
+    pub edl_strength: Option<f32>,
+    /// How far, in pixels, it looks for neighbours in front (implies --edl).
+    #[arg(long, value_parser = parse_non_negative)]
+    pub edl_radius: Option<f32>,
+}
+
+impl EdlArgs {
+    pub fn edl(self) -> Option<farfield_render::Edl> {
+        let on = self.edl || self.edl_strength.is_some() || self.edl_radius.is_some();
+        let default = farfield_render::Edl::default();
+        on.then(|| farfield_render::Edl {
+            strength: self.edl_strength.unwrap_or(default.strength),
+            radius_px: self.edl_radius.unwrap_or(default.radius_px),
+        })
+    }
+}
+
+/// A finite number, 0 or more.
+fn parse_non_negative(s: &str) -> Result<f32, String> {
+    match s.parse::<f32>() {
+        Ok(v) if v.is_finite() && v >= 0.0 => Ok(v),
+        _ => Err(format!("{s} is not a number of 0 or more")),
+    }
+}
+
 #[derive(Debug, Clone, Copy, ValueEnum)]
 pub enum KernelArg {
     Square,
     Round,
+    Paraboloid,
 }
 
 impl From<KernelArg> for farfield_render::Kernel {
@@ -439,6 +476,7 @@ impl From<KernelArg> for farfield_render::Kernel {
         match k {
             KernelArg::Square => Self::Square,
             KernelArg::Round => Self::Round,
+            KernelArg::Paraboloid => Self::Paraboloid,
         }
     }
 }
@@ -510,6 +548,8 @@ pub struct RenderArgs {
     pub coverage: farfield_render::Coverage,
     #[arg(long, value_enum, default_value = "square")]
     pub kernel: KernelArg,
+    #[command(flatten)]
+    pub edl: EdlArgs,
     /// PLP files: the triangles a frame may draw, as a share of the scene
     /// (`5%`) or a count (`20000`); `all` draws everything.
     #[arg(long, default_value = "all")]
@@ -595,6 +635,7 @@ fn view_job(args: ViewArgs) -> anyhow::Result<commands::view::ViewJob> {
     let settings = farfield_viewer::panel::Settings {
         threshold: args.threshold,
         kernel: args.kernel.into(),
+        edl: args.edl.edl(),
         node_budget: args.budget,
         cache_mib: args.cache_mib.max(1),
         plp_budget_percent: args.plp_budget.clamp(0.0, 100.0),

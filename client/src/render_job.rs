@@ -8,7 +8,7 @@ use std::time::Duration;
 
 use anyhow::{Context, bail};
 use farfield_net::SessionOptions;
-use farfield_render::{Coverage, Kernel, Renderer, SplatStyle};
+use farfield_render::{Coverage, Edl, Kernel, Renderer, SplatStyle};
 use web_time::Instant;
 
 use crate::budget::BudgetSpec;
@@ -38,6 +38,8 @@ pub struct RenderJob {
     /// edge under which a cell is drawn as its color-cube (pixels).
     pub threshold_px: f64,
     pub kernel: Kernel,
+    /// Eye-dome lighting over splats, or none.
+    pub edl: Option<Edl>,
     /// Cubes: how face coverage is used.
     pub coverage: Coverage,
     pub session: SessionOptions,
@@ -96,6 +98,7 @@ pub fn run_with(
     };
     let style = SplatStyle {
         kernel: job.kernel,
+        edl: job.edl,
         coverage: job.coverage,
         ..SplatStyle::default()
     };
@@ -163,13 +166,9 @@ fn join_demo(
         if role.present {
             if let (true, Some(header)) = (link.is_presenting(), viewer.header().cloned()) {
                 let camera = job.camera.resolve(&header, job.width, job.height);
-                let kernel = match job.kernel {
-                    Kernel::Square => "square",
-                    Kernel::Round => "round",
-                };
                 let options = vec![
                     ("threshold".to_owned(), job.threshold_px.to_string()),
-                    ("kernel".to_owned(), kernel.to_owned()),
+                    ("kernel".to_owned(), job.kernel.name().to_owned()),
                 ];
                 link.show(viewer, &camera, options);
                 return Ok(camera);
@@ -185,8 +184,11 @@ fn join_demo(
                             job.threshold_px = t;
                         }
                     }
-                    ("kernel", "square") => job.kernel = Kernel::Square,
-                    ("kernel", "round") => job.kernel = Kernel::Round,
+                    ("kernel", name) => {
+                        if let Some(kernel) = Kernel::from_name(name) {
+                            job.kernel = kernel;
+                        }
+                    }
                     _ => {}
                 }
             }

@@ -27,6 +27,7 @@
 mod adapter;
 mod bsp;
 mod draw_list;
+mod edl;
 mod error_scope;
 mod geometry;
 mod impostors;
@@ -64,6 +65,29 @@ pub enum Kernel {
     /// The disc inscribed in that square.
     #[default]
     Round,
+    /// That disc as a paraboloid bulging toward the eye (Potree's): its
+    /// depth varies across it, so overlapping splats meet along curves and
+    /// eye-dome lighting shades them like a surface, not as flat cards.
+    Paraboloid,
+}
+
+impl Kernel {
+    /// Every kernel, in the order a panel lists them.
+    pub const ALL: [Kernel; 3] = [Kernel::Square, Kernel::Round, Kernel::Paraboloid];
+
+    /// Its name on command lines, in links and in demo sessions.
+    pub fn name(self) -> &'static str {
+        match self {
+            Kernel::Square => "square",
+            Kernel::Round => "round",
+            Kernel::Paraboloid => "paraboloid",
+        }
+    }
+
+    /// The kernel of that name.
+    pub fn from_name(name: &str) -> Option<Kernel> {
+        Kernel::ALL.into_iter().find(|k| k.name() == name)
+    }
 }
 
 /// How splats are drawn.
@@ -83,6 +107,26 @@ pub struct SplatStyle {
     /// Image caching: outline each cached image's quad (a viewer shows
     /// which parts of the picture are caches; never in a measured image).
     pub outline_caches: bool,
+    /// Eye-dome lighting over splats, or none.
+    pub edl: Option<Edl>,
+}
+
+/// Eye-dome lighting: each pixel darkened by how far its neighbours, at
+/// `radius_px`, stand in front of it in log depth, as Potree shades point
+/// clouds (its defaults: strength 1, radius 1.4).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Edl {
+    pub strength: f32,
+    pub radius_px: f32,
+}
+
+impl Default for Edl {
+    fn default() -> Self {
+        Self {
+            strength: 1.0,
+            radius_px: 1.4,
+        }
+    }
 }
 
 impl Default for SplatStyle {
@@ -95,6 +139,7 @@ impl Default for SplatStyle {
             two_sided: false,
             coverage: Coverage::default(),
             outline_caches: false,
+            edl: None,
         }
     }
 }

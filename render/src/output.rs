@@ -39,7 +39,7 @@ pub(crate) struct Frame {
 impl Frame {
     /// The one render pass of a frame: color cleared to `background` (sRGB
     /// bytes), depth cleared to 0, which with reversed Z is infinitely far,
-    /// and discarded after the pass.
+    /// and kept after the pass (eye-dome lighting reads it).
     pub fn begin_pass<'e>(
         &self,
         encoder: &'e mut wgpu::CommandEncoder,
@@ -62,7 +62,7 @@ impl Frame {
                 view: &self.depth,
                 depth_ops: Some(wgpu::Operations {
                     load: wgpu::LoadOp::Clear(0.0),
-                    store: wgpu::StoreOp::Discard,
+                    store: wgpu::StoreOp::Store,
                 }),
                 stencil_ops: None,
             }),
@@ -105,7 +105,8 @@ fn depth_texture(device: &wgpu::Device, width: u32, height: u32) -> wgpu::Textur
             sample_count: 1,
             dimension: wgpu::TextureDimension::D2,
             format: DEPTH_FORMAT,
-            usage: wgpu::TextureUsages::RENDER_ATTACHMENT,
+            // A texture too: eye-dome lighting reads it.
+            usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING,
             view_formats: &[],
         })
         .create_view(&Default::default())

@@ -62,6 +62,36 @@ pub(crate) fn depth_test(write: bool) -> wgpu::DepthStencilState {
     }
 }
 
+/// A 2D texture a fragment shader reads, at `binding`.
+pub(crate) fn fragment_texture(
+    binding: u32,
+    sample_type: wgpu::TextureSampleType,
+) -> wgpu::BindGroupLayoutEntry {
+    wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility: wgpu::ShaderStages::FRAGMENT,
+        ty: wgpu::BindingType::Texture {
+            sample_type,
+            view_dimension: wgpu::TextureViewDimension::D2,
+            multisampled: false,
+        },
+        count: None,
+    }
+}
+
+/// A sampler a fragment shader reads with, at `binding`.
+pub(crate) fn fragment_sampler(
+    binding: u32,
+    ty: wgpu::SamplerBindingType,
+) -> wgpu::BindGroupLayoutEntry {
+    wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility: wgpu::ShaderStages::FRAGMENT,
+        ty: wgpu::BindingType::Sampler(ty),
+        count: None,
+    }
+}
+
 /// A color target of `format`, blended or not.
 pub(crate) fn color_target(
     format: wgpu::TextureFormat,

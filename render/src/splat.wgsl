@@ -16,7 +16,8 @@ struct Frame {
     light_world: vec4<f32>,
     // The same in view space: x right, y up, z toward the viewer (spheres).
     light_view: vec4<f32>,
-    // x: round kernel (1) or square (0); y: two-sided lighting
+    // x: square kernel (0), round (1) or paraboloid (2); y: two-sided
+    // lighting
     flags: vec4<f32>,
 };
 
@@ -36,6 +37,13 @@ struct VsOut {
     @location(0) quad: vec2<f32>,
     @location(1) @interpolate(flat) normal: vec4<f32>,
     @location(2) @interpolate(flat) color: vec3<f32>,
+    // The center's depth and the quad's radius, view units (paraboloids).
+    @location(3) @interpolate(flat) depth_radius: vec2<f32>,
+};
+
+struct FsOut {
+    @location(0) color: vec4<f32>,
+    @builtin(frag_depth) depth: f32,
 };
 
 @vertex
@@ -50,11 +58,12 @@ fn vs_main(@builtin(vertex_index) vi: u32, s: SplatIn) -> VsOut {
     out.quad = q;
     out.normal = s.normal;
     out.color = s.color.rgb;
+    out.depth_radius = vec2<f32>(s.center.z, radius);
     return out;
 }
 
-@fragment
-fn fs_main(in: VsOut) -> @location(0) vec4<f32> {
+// The splat's lit color, or a discard outside its footprint.
+fn shade(in: VsOut) -> vec4<f32> {
     let r2 = dot(in.quad, in.quad);
     let sphere = in.normal.w < 0.5;
     if (sphere || frame.flags.x > 0.5) && r2 > 1.0 {
@@ -69,4 +78,23 @@ fn fs_main(in: VsOut) -> @location(0) vec4<f32> {
         lambert = select(max(d, 0.0), abs(d), frame.flags.y > 0.5);
     }
     return vec4<f32>(in.color * (0.3 + 0.7 * lambert), 1.0);
+}
+
+// Flat splats: the depth the quad was rasterized at (early depth tests
+// stay on).
+@fragment
+fn fs_main(in: VsOut) -> @location(0) vec4<f32> {
+    return shade(in);
+}
+
+// Paraboloids: nearer toward the middle by up to the radius, never past
+// the near plane.
+@fragment
+fn fs_paraboloid(in: VsOut) -> FsOut {
+    var out: FsOut;
+    out.color = shade(in);
+    let r2 = dot(in.quad, in.quad);
+    let z = max(in.depth_radius.x - in.depth_radius.y * (1.0 - r2), frame.proj.z);
+    out.depth = frame.proj.z / z;
+    return out;
 }

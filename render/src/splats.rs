@@ -11,6 +11,7 @@ use farfield_traverse::spheres::Splat;
 use glam::{DVec3, Vec3};
 
 use crate::adapter::Gpu;
+use crate::edl::EdlPass;
 use crate::error_scope::ValidationScope;
 use crate::instances::{self, GpuSplat, STRIDE};
 use crate::output::Output;
@@ -40,8 +41,12 @@ struct FrameUniform {
 #[derive(Debug)]
 pub(crate) struct SplatPipeline {
     pipeline: wgpu::RenderPipeline,
+    /// The same, writing each fragment's depth (paraboloid splats).
+    paraboloid: wgpu::RenderPipeline,
     uniform: wgpu::Buffer,
     bind_group: wgpu::BindGroup,
+    /// Eye-dome lighting, drawn after the splats when the style asks.
+    edl: EdlPass,
     /// Instance buffers, one per chunk, each with its capacity in splats.
     chunks: Vec<(wgpu::Buffer, u64)>,
     /// Splats per chunk: the most one buffer may hold.
@@ -68,30 +73,36 @@ impl SplatPipeline {
         let attributes = wgpu::vertex_attr_array![
             0 => Float32x3, 1 => Float32, 2 => Snorm16x4, 3 => Unorm8x4
         ];
-        let pipeline = PipelineSpec {
-            label: "farfield splats",
-            layout: &layout,
-            shader: &shader,
-            vertex_entry: "vs_main",
-            fragment_entry: "fs_main",
-            buffers: &[Some(wgpu::VertexBufferLayout {
-                array_stride: STRIDE,
-                step_mode: wgpu::VertexStepMode::Instance,
-                attributes: &attributes,
-            })],
-            topology: wgpu::PrimitiveTopology::TriangleStrip,
-            depth: depth_test(true),
-            targets: &[color_target(format, None)],
-        }
-        .build(device);
+        let spec = |fragment_entry| {
+            PipelineSpec {
+                label: "farfield splats",
+                layout: &layout,
+                shader: &shader,
+                vertex_entry: "vs_main",
+                fragment_entry,
+                buffers: &[Some(wgpu::VertexBufferLayout {
+                    array_stride: STRIDE,
+                    step_mode: wgpu::VertexStepMode::Instance,
+                    attributes: &attributes,
+                })],
+                topology: wgpu::PrimitiveTopology::TriangleStrip,
+                depth: depth_test(true),
+                targets: &[color_target(format, None)],
+            }
+            .build(device)
+        };
+        let pipeline = spec("fs_main");
+        let paraboloid = spec("fs_paraboloid");
         if let Some(e) = scope.pop() {
             bail!("creating the splat pipeline: {e}");
         }
         let chunk_splats = (limits.max_buffer_size.min(MAX_CHUNK_BYTES) / STRIDE).max(1);
         Ok(Self {
             pipeline,
+            paraboloid,
             uniform,
             bind_group,
+            edl: EdlPass::new(device, format),
             chunks: Vec::new(),
             chunk_splats,
             scratch: Vec::new(),
@@ -138,12 +149,20 @@ impl SplatPipeline {
             });
         {
             let mut pass = frame.begin_pass(&mut encoder, "farfield splats", style.background);
-            pass.set_pipeline(&self.pipeline);
+            pass.set_pipeline(match style.kernel {
+                Kernel::Paraboloid => &self.paraboloid,
+                Kernel::Square | Kernel::Round => &self.pipeline,
+            });
             pass.set_bind_group(0, &self.bind_group, &[]);
             for (chunk, count) in self.chunks.iter().zip(draws) {
                 pass.set_vertex_buffer(0, chunk.0.slice(..count * STRIDE));
                 pass.draw(0..4, 0..count as u32);
             }
+        }
+        if let Some(edl) = style.edl {
+            let (device, queue) = (&gpu.device, &gpu.queue);
+            self.edl
+                .draw(device, queue, &mut encoder, &frame.color, &frame.depth, edl);
         }
         let rgba = output.finish(gpu, frame, encoder)?;
         let draw_ms = started.elapsed().as_secs_f64() * 1e3;
@@ -216,7 +235,11 @@ fn frame_uniform(view: &View, near: f64, style: &SplatStyle) -> FrameUniform {
         light_world: [l_world.x, l_world.y, l_world.z, 0.0],
         light_view: [l_view.x, l_view.y, l_view.z, 0.0],
         flags: [
-            f32::from(u8::from(style.kernel == Kernel::Round)),
+            match style.kernel {
+                Kernel::Square => 0.0,
+                Kernel::Round => 1.0,
+                Kernel::Paraboloid => 2.0,
+            },
             f32::from(u8::from(style.two_sided)),
             0.0,
             0.0,

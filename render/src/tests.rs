@@ -35,6 +35,7 @@ fn style(kernel: Kernel) -> SplatStyle {
         two_sided: false,
         coverage: Default::default(),
         outline_caches: false,
+        edl: None,
     }
 }
 
@@ -264,4 +265,86 @@ fn resize_and_size_checks() {
     assert_eq!(out.rgba.len(), 33 * 17 * 4);
     assert_eq!(out.pixel(32, 16), Some([10, 20, 30, 255]));
     assert_eq!(out.pixel(33, 0), None);
+}
+
+/// Eye-dome lighting darkens depth steps and outlines silhouettes, and
+/// leaves flat parts and open background as they were: a square in front
+/// of a wall in front of a bright background, along the middle row.
+#[test]
+fn eye_dome_lighting_outlines_depth_steps_and_leaves_flat_parts() {
+    let Some(mut r) = renderer() else { return };
+    let bright = [100, 150, 200];
+    let splats = [
+        facing(DVec3::new(20.0, 0.0, 0.0), 6.0, [200, 200, 200]),
+        facing(DVec3::new(10.0, 0.0, 0.0), 1.5, [200, 200, 200]),
+    ];
+    let plain_style = SplatStyle {
+        background: bright,
+        ..style(Kernel::Square)
+    };
+    let edl_style = SplatStyle {
+        edl: Some(crate::Edl::default()),
+        ..plain_style
+    };
+    let cam = camera(DVec3::ZERO);
+    let plain = r.render(&cam, &splats, &plain_style).unwrap();
+    let shaded = r.render(&cam, &splats, &edl_style).unwrap();
+    let row = |out: &crate::RenderOutput| -> Vec<[u8; 3]> {
+        (0..W).map(|x| rgb(out.pixel(x, H / 2))).collect()
+    };
+    let (plain_row, shaded_row) = (row(&plain), row(&shaded));
+    let dark = |p: &[u8; 3]| p.iter().map(|&c| u32::from(c)).sum::<u32>() < 90;
+    assert!(!plain_row.iter().any(dark), "plain: {plain_row:?}");
+    // Where the row crosses the square's edges (at about 25 and 38) and
+    // the wall's (19 and 44).
+    let darkened: Vec<u32> = (0..W).filter(|&x| dark(&shaded_row[x as usize])).collect();
+    let (square, wall) = (
+        darkened.iter().filter(|&&x| (22..42).contains(&x)).count(),
+        darkened.len(),
+    );
+    assert!(square >= 2, "the square's edges: dark at {darkened:?}");
+    assert!(
+        wall - square >= 2,
+        "the wall's silhouette: dark at {darkened:?}"
+    );
+    // Flat parts and open background keep their color.
+    for x in [W / 2, W / 2 + 1, 1, W - 2] {
+        let (a, b) = (plain_row[x as usize], shaded_row[x as usize]);
+        assert!(close(a, b), "x {x}: {a:?} became {b:?}");
+    }
+    assert!(darkened.len() < 12, "dark at {darkened:?}");
+}
+
+/// Paraboloid splats meet along the line where their depths cross: two of
+/// one depth, overlapping, split the overlap between them, where flat
+/// discs give it all to the one drawn first.
+#[test]
+fn paraboloid_splats_split_their_overlap() {
+    let Some(mut r) = renderer() else { return };
+    let (red, blue) = ([220, 30, 30], [30, 30, 220]);
+    // Image right is world -Y: red left of the middle, blue right of it.
+    let splats = [
+        facing(DVec3::new(10.0, 1.0, 0.0), 1.5, red),
+        facing(DVec3::new(10.0, -1.0, 0.0), 1.5, blue),
+    ];
+    let cam = camera(DVec3::ZERO);
+    let flat = r.render(&cam, &splats, &style(Kernel::Round)).unwrap();
+    let curved = r.render(&cam, &splats, &style(Kernel::Paraboloid)).unwrap();
+    let at = |out: &crate::RenderOutput, x: u32| rgb(out.pixel(x, H / 2));
+    // Left and right of the middle, inside the overlap (columns 30 to 34).
+    assert!(close(at(&flat, W / 2 - 1), red) && close(at(&flat, W / 2 + 1), red));
+    assert!(
+        close(at(&curved, W / 2 - 1), red),
+        "{:?}",
+        at(&curved, W / 2 - 1)
+    );
+    assert!(
+        close(at(&curved, W / 2 + 1), blue),
+        "{:?}",
+        at(&curved, W / 2 + 1)
+    );
+    // Away from the overlap both kernels draw the same.
+    for x in [W / 2 - 6, W / 2 + 6] {
+        assert_eq!(at(&flat, x), at(&curved, x), "column {x}");
+    }
 }

@@ -89,6 +89,7 @@ fn render(
         until: Until::Refined,
         threshold_px: 1.0,
         kernel: Kernel::Square,
+        edl: None,
         coverage: Coverage::Alpha,
         session: SessionOptions::default(),
         cache_bytes: 256 << 20,

@@ -570,6 +570,7 @@ fn streamed_plp_at_a_budget_equals_the_file_and_fetches_less() {
         until: farfield_client::frame_loop::Until::Refined,
         threshold_px: 1.0,
         kernel: Default::default(),
+        edl: None,
         coverage: Default::default(),
         session: Default::default(),
         cache_bytes: 64 << 20,

@@ -70,6 +70,7 @@ pub(crate) fn job(source: Source, camera: CameraSpec) -> RenderJob {
         until: Until::Refined,
         threshold_px: 1.0,
         kernel: Kernel::Square,
+        edl: None,
         coverage: Default::default(),
         session: SessionOptions::default(),
         cache_bytes: 256 << 20,

@@ -133,6 +133,7 @@ pub fn run_bench(job: &BenchStreamJob) -> anyhow::Result<BenchStreamReport> {
         until: Until::Refined,
         threshold_px: 1.0,
         kernel: Kernel::Square,
+        edl: None,
         coverage: Default::default(),
         session: SessionOptions::default(),
         cache_bytes: usize::MAX,

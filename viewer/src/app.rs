@@ -380,13 +380,9 @@ impl ViewerApp {
         let camera = rig.shown().camera(width, height);
         let rest_spec = (!moving).then(|| rig.shown().spec());
         let s = &self.options.settings;
-        let kernel = match s.kernel {
-            farfield_render::Kernel::Square => "square",
-            farfield_render::Kernel::Round => "round",
-        };
         let shown_options = vec![
             ("threshold".to_owned(), s.threshold.to_string()),
-            ("kernel".to_owned(), kernel.to_owned()),
+            ("kernel".to_owned(), s.kernel.name().to_owned()),
         ];
         self.demo.present(&mut self.viewer, &camera, shown_options);
 
@@ -415,6 +411,7 @@ impl ViewerApp {
         let s = &self.options.settings;
         let style = SplatStyle {
             kernel: s.kernel,
+            edl: s.edl,
             coverage: s.coverage,
             outline_caches: s.outline_caches,
             ..SplatStyle::default()

@@ -1,7 +1,7 @@
 //! The panel: what the view is doing, and the settings a user changes
 //! while looking (rerun's and Potree's side panels are the model).
 
-use farfield_render::{Coverage, Kernel};
+use farfield_render::{Coverage, Edl, Kernel};
 
 use crate::status::Status;
 
@@ -11,6 +11,9 @@ pub struct Settings {
     /// The threshold a resting view refines to: pixels (spheres) or eps (cubes).
     pub threshold: f64,
     pub kernel: Kernel,
+    /// Eye-dome lighting over splats (Potree's shading of point clouds),
+    /// or none.
+    pub edl: Option<Edl>,
     /// Cube hierarchies: how face coverage is used.
     pub coverage: Coverage,
     /// Most nodes a frame draws (Potree's point budget); 0 is none.
@@ -40,6 +43,7 @@ impl Default for Settings {
         Self {
             threshold: 1.0,
             kernel: Kernel::Square,
+            edl: None,
             coverage: Coverage::Alpha,
             node_budget: 0,
             target_frame_ms: 33.0,
@@ -218,14 +222,28 @@ fn stats(ui: &mut egui::Ui, status: &Status) {
     }
 }
 
+/// Eye-dome lighting on or off, and its strength and radius when on.
+fn edl_ui(ui: &mut egui::Ui, edl: &mut Option<Edl>) {
+    let mut on = edl.is_some();
+    if ui.checkbox(&mut on, "eye-dome lighting").changed() {
+        *edl = on.then(Edl::default);
+    }
+    if let Some(edl) = edl {
+        ui.add(egui::Slider::new(&mut edl.strength, 0.0..=5.0).text("EDL strength"));
+        ui.add(egui::Slider::new(&mut edl.radius_px, 0.5..=4.0).text("EDL radius (px)"));
+    }
+}
+
 /// The settings the scene's kind reads, then those every kind has.
 fn settings_ui(ui: &mut egui::Ui, controls: Controls, settings: &mut Settings) {
     if controls.kernel {
         ui.horizontal(|ui| {
             ui.label("splats");
-            ui.selectable_value(&mut settings.kernel, Kernel::Square, "square");
-            ui.selectable_value(&mut settings.kernel, Kernel::Round, "round");
+            for kernel in Kernel::ALL {
+                ui.selectable_value(&mut settings.kernel, kernel, kernel.name());
+            }
         });
+        edl_ui(ui, &mut settings.edl);
     }
     if controls.threshold {
         ui.add(egui::Slider::new(&mut settings.threshold, 0.0..=16.0).text("threshold / eps (px)"));

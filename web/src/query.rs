@@ -1,5 +1,5 @@
 //! The viewer's options from the page's query string:
-//! `?panel=0&backend=webgl&kernel=round&threshold=2&budget=N&plp_budget=P&plp_budget_ms=MS&epsilon_px=E&outlines=1&cache_mib=M&access_token=T`,
+//! `?panel=0&backend=webgl&kernel=round&edl=1&edl_strength=S&edl_radius=PX&threshold=2&budget=N&plp_budget=P&plp_budget_ms=MS&epsilon_px=E&outlines=1&cache_mib=M&access_token=T`,
 //! `flight=SECONDS` (the benchmark's scripted flight), and
 //! `session=NAME&role=follow|present` (a demo session), and
 //! `fallback=webgpu-lost` (set by the page itself: see [`WEBGPU_LOST`]).
@@ -68,10 +68,23 @@ pub fn parse(search: &str) -> Result<Query, String> {
     if let Some(m) = number("cache_mib")? {
         options.settings.cache_mib = (m as u64).max(1);
     }
-    options.settings.kernel = match params.get("kernel").as_deref() {
-        None | Some("square") => Kernel::Square,
-        Some("round") => Kernel::Round,
-        Some(other) => return Err(format!("kernel={other} is not square or round")),
+    let strength = number("edl_strength")?;
+    let radius = number("edl_radius")?;
+    let edl_asked = match params.get("edl").as_deref() {
+        None => strength.is_some() || radius.is_some(),
+        Some("1" | "true" | "yes" | "on") => true,
+        Some("0" | "false" | "no" | "off") => false,
+        Some(other) => return Err(format!("edl={other} is not 1 or 0")),
+    };
+    let default = farfield_render::Edl::default();
+    options.settings.edl = edl_asked.then(|| farfield_render::Edl {
+        strength: strength.map_or(default.strength, |v| v as f32),
+        radius_px: radius.map_or(default.radius_px, |v| v as f32),
+    });
+    options.settings.kernel = match params.get("kernel") {
+        None => Kernel::Square,
+        Some(name) => Kernel::from_name(&name)
+            .ok_or_else(|| format!("kernel={name} is not square, round or paraboloid"))?,
     };
     if let Some(session) = params.get("session") {
         let present = match params.get("role").as_deref() {

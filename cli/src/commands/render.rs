@@ -49,6 +49,7 @@ pub fn run(args: RenderArgs) -> anyhow::Result<()> {
         until,
         threshold_px: threshold,
         kernel: args.kernel.into(),
+        edl: args.edl.edl(),
         coverage: args.coverage,
         session: SessionOptions {
             allow_push: args.push,
@@ -153,6 +154,7 @@ fn fly_path(
         target_frame_ms: 100.0,
         style: SplatStyle {
             kernel: job.kernel,
+            edl: job.edl,
             coverage: job.coverage,
             ..SplatStyle::default()
         },

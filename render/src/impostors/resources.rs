@@ -8,7 +8,7 @@ use anyhow::{bail, ensure};
 use super::pack::GpuQuad;
 use crate::error_scope::ValidationScope;
 use crate::geometry::GeometryPipelines;
-use crate::pipeline::{PipelineSpec, color_target, depth_test};
+use crate::pipeline::{PipelineSpec, color_target, depth_test, fragment_sampler, fragment_texture};
 use crate::target::Target;
 
 /// The atlas, the scratch frame caches are drawn in, and the quad
@@ -65,22 +65,8 @@ impl ImpostorResources {
         let texture_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("farfield quads atlas"),
             entries: &[
-                wgpu::BindGroupLayoutEntry {
-                    binding: 0,
-                    visibility: wgpu::ShaderStages::FRAGMENT,
-                    ty: wgpu::BindingType::Texture {
-                        sample_type: wgpu::TextureSampleType::Float { filterable: true },
-                        view_dimension: wgpu::TextureViewDimension::D2,
-                        multisampled: false,
-                    },
-                    count: None,
-                },
-                wgpu::BindGroupLayoutEntry {
-                    binding: 1,
-                    visibility: wgpu::ShaderStages::FRAGMENT,
-                    ty: wgpu::BindingType::Sampler(wgpu::SamplerBindingType::Filtering),
-                    count: None,
-                },
+                fragment_texture(0, wgpu::TextureSampleType::Float { filterable: true }),
+                fragment_sampler(1, wgpu::SamplerBindingType::Filtering),
             ],
         });
         let sampler = device.create_sampler(&wgpu::SamplerDescriptor {

@@ -15,11 +15,14 @@ use std::time::Duration;
 
 use farfield_memory_server::web_assets::{self, WebViewer};
 use farfield_memory_server::{RunningServer, ServerConfig, start};
+use farfield_render::Kernel;
 use farfield_tests::scratch;
 use serde_json::Value;
 
 use super::webdriver::{Browser, Graphics};
-use super::{PlpRows, bunny_in, camera_of_fragment, have, lit, missing, psnr, reference};
+use super::{
+    PlpRows, bunny_in, camera_of_fragment, have, lit, missing, psnr, reference, reference_with,
+};
 use crate::streaming::runtime;
 
 const SIZE: (u32, u32) = (320, 240);
@@ -627,5 +630,61 @@ fn the_browser_follows_a_demo_sessions_presenter() {
     assert_eq!(sessions[0].followers, 1, "{sessions:?}");
     drop(browser);
     drop(presenter);
+    rt.block_on(server.shutdown()).unwrap();
+}
+
+/// Eye-dome lighting (`?edl=1`) draws what `farfield render --edl` draws,
+/// on WebGPU and WebGL2, with flat and paraboloid splats, and darkens the
+/// bunny's creases and steps against the plain picture.
+#[test]
+fn eye_dome_lighting_in_the_browser_draws_the_headless_image() {
+    let _one = ONE_BROWSER.lock().unwrap_or_else(|e| e.into_inner());
+    let Some((dir, bunny, web)) = setup("viewer-edl") else {
+        return;
+    };
+    let rt = runtime();
+    let server = rt.block_on(serve(&dir, &web, "127.0.0.1:0".parse().unwrap()));
+    let browser = Browser::start(SIZE.0, SIZE.1);
+    let camera = camera_of_fragment(START);
+    let brightness = |rgba: &[u8]| -> u64 {
+        rgba.chunks(4)
+            .map(|p| u64::from(p[0]) + u64::from(p[1]) + u64::from(p[2]))
+            .sum()
+    };
+    for kernel in [Kernel::Square, Kernel::Paraboloid] {
+        let edl = Some(farfield_render::Edl::default());
+        let shaded = reference_with(&bunny, camera, SIZE, |job| {
+            (job.kernel, job.edl) = (kernel, edl);
+        })
+        .unwrap();
+        let plain = reference_with(&bunny, camera, SIZE, |job| job.kernel = kernel).unwrap();
+        let darker = brightness(&shaded) as f64 / brightness(&plain) as f64;
+        let apart = psnr(&plain, &shaded, SIZE.0, SIZE.1);
+        let name = kernel.name();
+        eprintln!(
+            "{name}, headless: EDL keeps {darker:.3} of the brightness, {apart:.1} dB from plain"
+        );
+        assert!(darker < 0.97, "{name}: EDL darkens little: {darker:.3}");
+        for backend in ["webgpu", "webgl"] {
+            browser.goto(&format!(
+                "http://{}/view/bunny?panel=0&backend={backend}&kernel={name}&edl=1#{START}",
+                server.local_addr()
+            ));
+            browser.wait_for(backend, REFINED, REPORT, WAIT);
+            let (_, _, shot) = browser.canvas_pixels();
+            let (to_shaded, to_plain) = (
+                psnr(&shaded, &shot, SIZE.0, SIZE.1),
+                psnr(&plain, &shot, SIZE.0, SIZE.1),
+            );
+            eprintln!(
+                "{name}, {backend}: {to_shaded:.1} dB from headless EDL, {to_plain:.1} dB from plain"
+            );
+            assert!(
+                to_shaded >= 30.0 && to_shaded > to_plain + 3.0,
+                "{name}, {backend}: {to_shaded:.1} dB from headless EDL, {to_plain:.1} dB from plain"
+            );
+        }
+    }
+    drop(browser);
     rt.block_on(server.shutdown()).unwrap();
 }

@@ -70,13 +70,24 @@ fn reference(file: &Path, camera: CameraSpec, width: u32, height: u32) -> Option
 fn reference_on_budget(
     file: &Path,
     camera: CameraSpec,
-    (width, height): (u32, u32),
+    size: (u32, u32),
     budget: BudgetSpec,
+) -> Option<Vec<u8>> {
+    reference_with(file, camera, size, |job| job.budget = budget)
+}
+
+/// The same with the job as `change` leaves it (`farfield render`'s
+/// options).
+fn reference_with(
+    file: &Path,
+    camera: CameraSpec,
+    (width, height): (u32, u32),
+    change: impl FnOnce(&mut farfield_client::render_job::RenderJob),
 ) -> Option<Vec<u8>> {
     let mut renderer = headless_or_skip(width, height).unwrap()?;
     let mut job = job(Source::File(file.to_owned()), camera);
     (job.width, job.height) = (width, height);
-    job.budget = budget;
+    change(&mut job);
     let rendered = farfield_client::render_job::run(&job, &mut renderer, false).unwrap();
     assert!(rendered.report.refined);
     Some(rendered.rgba)

@@ -180,11 +180,8 @@ pub fn hierarchy_settings(
                     .with_context(|| format!("{param} {value} is not a non-negative number"))?;
             }
             "kernel" => {
-                style.kernel = match value {
-                    "square" => Kernel::Square,
-                    "round" => Kernel::Round,
-                    _ => bail!("kernel {value} is not square or round"),
-                }
+                style.kernel = Kernel::from_name(value)
+                    .with_context(|| format!("kernel {value} is not square, round or paraboloid"))?
             }
             "coverage" => style.coverage = value.parse::<Coverage>().map_err(anyhow::Error::msg)?,
             // Read by `budget_setting`.
