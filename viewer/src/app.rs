@@ -592,6 +592,9 @@ impl eframe::App for ViewerApp {
                 self.viewer.set_cache_bytes(s.cache_bytes());
             }
             screenshot |= action.screenshot;
+            self.status.screenshot_button = action
+                .screenshot_button
+                .map(|r| [r.min.x, r.min.y, r.width(), r.height()]);
             self.status.reset_requested |= action.reset;
             self.show_panel &= !action.hide;
         } else if ui.input(|i| {

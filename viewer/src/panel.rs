@@ -110,6 +110,8 @@ pub struct Actions {
     /// with it).
     pub panel: Option<egui::Rect>,
     pub buttons: Option<egui::Rect>,
+    /// Where the screenshot button is on screen.
+    pub screenshot_button: Option<egui::Rect>,
 }
 
 /// Which of the panel's controls a scene's kind reads, from the settings
@@ -179,7 +181,9 @@ pub fn show(
                     ui.separator();
                     let row = ui.horizontal_wrapped(|ui| {
                         actions.reset = ui.button("reset (R)").clicked();
-                        actions.screenshot = ui.button("screenshot").clicked();
+                        let screenshot = ui.button("screenshot");
+                        actions.screenshot_button = Some(screenshot.rect);
+                        actions.screenshot = screenshot.clicked();
                         actions.hide = ui.button("hide (Tab)").clicked();
                     });
                     actions.buttons = Some(row.response.rect);

@@ -66,6 +66,10 @@ pub struct Status {
     pub error: Option<String>,
     /// The demo session, in a line ("following demo (member 3); ...").
     pub demo: Option<String>,
+    /// Where the panel's screenshot button is (x, y, width, height in
+    /// points, a page's CSS pixels), while the panel shows: what a script
+    /// clicks.
+    pub screenshot_button: Option<[f32; 4]>,
     /// The camera shown.
     #[serde(skip)]
     pub camera: Option<CameraSpec>,

@@ -19,6 +19,7 @@ pub(crate) mod ply;
 pub(crate) mod stream;
 #[cfg(test)]
 mod test_file;
+pub mod up;
 
 use std::path::{Path, PathBuf};
 
@@ -85,7 +86,7 @@ pub fn load_input(input: &str, params: &Params) -> Result<Scene, ImportError> {
     if let Some(name) = input.strip_prefix("gen:") {
         let scene = crate::generate::generate(name, params)?;
         validate(Path::new(input), &scene)?;
-        return Ok(scene);
+        return Ok(params.up.apply(up::InputKind::Other, scene));
     }
     let path = Path::new(input);
     let extension = path
@@ -107,7 +108,11 @@ pub fn load_input(input: &str, params: &Params) -> Result<Scene, ImportError> {
         }
     };
     validate(path, &scene)?;
-    Ok(scene)
+    let has_faces = scene
+        .geometries
+        .iter()
+        .any(|g| matches!(g.primitives, crate::scene::Primitives::Triangles(_)));
+    Ok(params.up.apply(up::InputKind::of(input, has_faces), scene))
 }
 
 /// Loads every input and merges them into one scene (a build of several
@@ -296,6 +301,35 @@ mod tests {
     use crate::cubes::{CubeOptions, build_cubes};
     use crate::{BuildOptions, PagedFile, build_spheres};
     use farfield_protocol::paged_file::read_image;
+
+    /// A mesh file is turned Z-up by its convention (OBJ: Y-up), its
+    /// normals with it; `--up z` keeps it as it is, and a point cloud in
+    /// PLY is Z-up already.
+    #[test]
+    fn a_y_up_mesh_is_imported_z_up() {
+        let text = "v 0 0 0\nv 1 0 0\nv 0 10 2\nvn 0 1 0\nf 1//1 2//1 3//1\n";
+        let file = TestFile::new("tall.obj", text);
+        let load = |up: super::up::Up| {
+            let mut params = super::Params::default();
+            params.up = up;
+            let scene = super::load_input(file.path().to_str().unwrap(), &params).unwrap();
+            scene.geometries[0].clone()
+        };
+        let turned = load(super::up::Up::Auto);
+        assert_eq!(turned.positions[2], glam::DVec3::new(0.0, -2.0, 10.0));
+        assert_eq!(turned.normals.as_ref().unwrap()[0], glam::Vec3::Z);
+        let kept = load(super::up::Up::Z);
+        assert_eq!(kept.positions[2], glam::DVec3::new(0.0, 10.0, 2.0));
+        let cloud = TestFile::new(
+            "cloud.ply",
+            "ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\nproperty float y\nproperty float z\nend_header\n0 0 0\n0 10 2\n",
+        );
+        let scene = super::load_input(cloud.path().to_str().unwrap(), &Default::default()).unwrap();
+        assert_eq!(
+            scene.geometries[0].positions[1],
+            glam::DVec3::new(0.0, 10.0, 2.0)
+        );
+    }
 
     fn read_back(file: &PagedFile) {
         let bytes = file.to_bytes();

@@ -1,10 +1,16 @@
-//! `--param key=value` pairs, parsed once and read by the generators.
+//! `--param key=value` pairs, parsed once and read by the generators, and
+//! the `--up` axis every importer turns its input by.
 
 use std::collections::BTreeMap;
 
-/// The `--param key=value` pairs of a build, in the order of their keys.
+/// The `--param key=value` pairs of a build, in the order of their keys,
+/// and its `--up`.
 #[derive(Debug, Clone, Default, PartialEq)]
-pub struct Params(BTreeMap<String, String>);
+pub struct Params {
+    pairs: BTreeMap<String, String>,
+    /// Which way is up in the inputs (see [`super::up`]).
+    pub up: super::up::Up,
+}
 
 impl Params {
     /// Parses `key=value` strings; a later key replaces an earlier one.
@@ -20,17 +26,20 @@ impl Params {
             }
             map.insert(key.to_owned(), value.to_owned());
         }
-        Ok(Self(map))
+        Ok(Self {
+            pairs: map,
+            up: Default::default(),
+        })
     }
 
     /// The raw value of `key`, if given.
     pub fn get(&self, key: &str) -> Option<&str> {
-        self.0.get(key).map(String::as_str)
+        self.pairs.get(key).map(String::as_str)
     }
 
     /// Keys that are not in `known`, for "unknown parameter" errors.
     pub fn unknown_keys<'a>(&'a self, known: &[&str]) -> Vec<&'a str> {
-        self.0
+        self.pairs
             .keys()
             .map(String::as_str)
             .filter(|k| !known.contains(k))
@@ -49,6 +58,6 @@ impl Params {
 
     /// Inserts or replaces one pair (used by code that builds parameter sets).
     pub fn set(&mut self, key: &str, value: impl ToString) {
-        self.0.insert(key.to_owned(), value.to_string());
+        self.pairs.insert(key.to_owned(), value.to_string());
     }
 }

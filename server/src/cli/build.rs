@@ -170,7 +170,8 @@ impl Made {
 }
 
 pub fn run(args: &BuildArgs) -> anyhow::Result<Report> {
-    let params = Params::parse(&args.params).map_err(anyhow::Error::msg)?;
+    let mut params = Params::parse(&args.params).map_err(anyhow::Error::msg)?;
+    params.up = args.up;
     if let Some(subset) = args.subset {
         // A part is a folder (or a prefix in a store), not a scene file.
         return run_subset(args, subset, &params, &progress_bar(args.json));

@@ -265,6 +265,11 @@ pub struct BuildArgs {
     /// Generator parameters, `key=value` (e.g. trees=64, seed=3).
     #[arg(long = "param", value_name = "KEY=VALUE")]
     pub params: Vec<String>,
+    /// The inputs' up axis, turned to +Z so the scene opens upright:
+    /// `auto` (Y for OBJ, OFF and PLY meshes, Z for the rest), `x`, `y`
+    /// or `z`. LAS/LAZ are Z-up whatever it says.
+    #[arg(long, default_value = "auto")]
+    pub up: farfield_builder::import::up::Up,
     /// Upper bound on a page's bytes (default: 16 KiB for spheres, 64 KiB
     /// for cubes, 32 KiB for plp).
     #[arg(long)]

@@ -321,7 +321,6 @@ fn a_browser_without_webgpu_or_webgl2_is_told_so() {
 /// shows it.
 #[test]
 fn the_screenshot_button_saves_the_picture_on_webgpu_and_webgl() {
-    const BUTTON: (i64, i64) = (120, 486);
     let _one = ONE_BROWSER.lock().unwrap_or_else(|e| e.into_inner());
     let Some((dir, _, web)) = setup("viewer-screenshot") else {
         return;
@@ -336,7 +335,15 @@ fn the_screenshot_button_saves_the_picture_on_webgpu_and_webgl() {
         ));
         browser.wait_for(backend, REFINED, REPORT, WAIT);
         browser.eval("delete document.getElementById('farfield').dataset.screenshot; return null");
-        browser.click(BUTTON.0, BUTTON.1);
+        // Where the panel says its button is, and within the page.
+        let button = status(&browser)["screenshot_button"].clone();
+        let at = |i: usize| button[i].as_f64().unwrap_or(f64::NAN);
+        let (x, y) = (at(0) + at(2) / 2.0, at(1) + at(3) / 2.0);
+        assert!(
+            (0.0..800.0).contains(&x) && (0.0..600.0).contains(&y),
+            "{backend}: the button at {button}"
+        );
+        browser.click(x as i64, y as i64);
         browser.wait_for(
             &format!("{backend}: the screenshot"),
             "return !!document.getElementById('farfield').dataset.screenshot",

@@ -49,6 +49,7 @@ use std::path::PathBuf;
 
 use crate::BuildError;
 use crate::import::stream::{MeshInfo, Streamed};
+use crate::import::up::InputKind;
 use crate::import::{ImportError, Params, expand_folders, las, load_input};
 use crate::page_writer::SpilledFile;
 use crate::progress::Progress;
@@ -158,9 +159,12 @@ pub fn plan(inputs: &[String], params: &Params, budget: &Budget) -> Result<Plan,
                 .into_iter()
                 .filter_map(|e| match e {
                     Input::Loaded(scene) => Some(mesh::MeshInput::Scene(scene)),
-                    Input::Mesh { path, format, info } => {
-                        Some(mesh::MeshInput::File { path, format, info })
-                    }
+                    Input::Mesh { path, format, info } => Some(mesh::MeshInput::File {
+                        path,
+                        format,
+                        info,
+                        place: params.up.world_from_input(InputKind::MeshFile),
+                    }),
                     Input::Las(_) => None,
                 })
                 .collect(),

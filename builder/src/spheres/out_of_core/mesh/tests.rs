@@ -8,6 +8,7 @@ use super::super::tests::{assert_alike, scratch};
 use super::super::{Budget, Job};
 use super::MeshInput;
 use crate::import::stream::Streamed;
+use crate::import::up::InputKind;
 use crate::progress::Silent;
 use crate::scene::{Geometry, Instance, Primitives, Scene};
 use crate::spheres::leaves::{Leaf, make_leaves, unpack_normal};
@@ -290,6 +291,7 @@ fn assert_streamed_like_import(
         path: path.clone(),
         format,
         info,
+        place: crate::import::up::Up::Auto.world_from_input(InputKind::MeshFile),
     };
     let (sized, _) = super::size(vec![input], &budget(0, &spill), &temp, &Silent).unwrap();
     assert!(sized.entries.len() >= 20, "{} chunks", sized.entries.len());

@@ -22,6 +22,7 @@ use super::super::io_error;
 use super::super::temp::TempDir;
 use crate::BuildError;
 use crate::import::common::unit_normal;
+use crate::import::up::turn_normal;
 use crate::import::{is_buildable, unbuildable};
 use crate::progress::Progress;
 use crate::scene::{Primitives, Rgb8, Scene};
@@ -52,11 +53,13 @@ pub(crate) enum MeshInput {
     /// Meshes in memory (generated, or read whole by their importer),
     /// placed by their instances.
     Scene(Scene),
-    /// A mesh file (PLY, OFF or OBJ), read as a stream.
+    /// A mesh file (PLY, OFF or OBJ), read as a stream, and turned Z-up
+    /// by `place` (a rotation, [`crate::import::up`]), as its import is.
     File {
         path: PathBuf,
         format: Streamed,
         info: MeshInfo,
+        place: DAffine3,
     },
 }
 
@@ -141,8 +144,13 @@ pub(crate) fn write(
     for input in inputs {
         match input {
             MeshInput::Scene(scene) => out.scene(&scene, progress)?,
-            MeshInput::File { path, format, info } => {
-                out.file(&path, format, &info, temp, progress)?;
+            MeshInput::File {
+                path,
+                format,
+                info,
+                place,
+            } => {
+                out.file(&path, format, &info, place, temp, progress)?;
             }
         }
     }
@@ -177,6 +185,8 @@ pub(crate) fn write(
 struct BodySink<'a> {
     out: &'a mut Writers,
     path: &'a Path,
+    /// The file's turn to Z-up (a rotation).
+    place: DAffine3,
     /// The index of the file's first vertex among all the build's.
     base: u64,
     triangles: Vec<[u32; 3]>,
@@ -194,12 +204,16 @@ impl BodyOut for BodySink<'_> {
             normals,
             colors,
         } = batch;
-        for (i, &p) in positions.iter().enumerate() {
-            if !is_buildable(p) {
-                return Err(unbuildable(self.path, self.out.vertices - self.base, p));
+        for (i, &local) in positions.iter().enumerate() {
+            if !is_buildable(local) {
+                return Err(unbuildable(self.path, self.out.vertices - self.base, local));
             }
+            let p = self.place.transform_point3(local);
             let color = colors.as_ref().map_or(DEFAULT_COLOR, |c| c[i]);
-            let normal = normals.as_ref().map(|n| unit_normal(n[i]).unwrap_or(n[i]));
+            let normal = normals.as_ref().map(|n| {
+                let unit = unit_normal(n[i]).unwrap_or(n[i]);
+                turn_normal(self.place, unit)
+            });
             self.out
                 .vertex(p, color, normal)
                 .map_err(|e| ImportError::io(Path::new("temporary files"), e))?;
@@ -264,7 +278,7 @@ impl CornerFiles {
     /// Writes each vertex's normal, in order, made unit as the importer
     /// makes it (a vertex no corner named gets a zero one, repaired in its
     /// chunk as the importer repairs it), and removes the files.
-    fn write_normals(self, out: &mut Writers) -> io::Result<()> {
+    fn write_normals(self, out: &mut Writers, place: DAffine3) -> io::Result<()> {
         let table = self.table.into_inner().map_err(|e| e.into_error())?;
         drop(table);
         let table = if self.table_len == 0 {
@@ -285,7 +299,8 @@ impl CornerFiles {
                 }
                 _ => Vec3::ZERO,
             };
-            out.normal(unit_normal(n).unwrap_or(n))?;
+            let unit = unit_normal(n).unwrap_or(n);
+            out.normal(turn_normal(place, unit))?;
         }
         drop(table);
         drop(self.first);
@@ -368,6 +383,7 @@ impl Writers {
         path: &Path,
         format: Streamed,
         info: &MeshInfo,
+        place: DAffine3,
         temp: &TempDir,
         progress: &dyn Progress,
     ) -> Result<(), BuildError> {
@@ -380,6 +396,7 @@ impl Writers {
         let mut sink = BodySink {
             out: self,
             path,
+            place,
             base,
             triangles: Vec::new(),
             progress,
@@ -398,7 +415,7 @@ impl Writers {
             )));
         }
         if let Some(corners) = corners {
-            corners.write_normals(self).map_err(io_error)?;
+            corners.write_normals(self, place).map_err(io_error)?;
         }
         Ok(())
     }
