@@ -198,6 +198,10 @@ pub struct ViewArgs {
     pub kernel: KernelArg,
     #[command(flatten)]
     pub edl: EdlArgs,
+    /// What colors splats: `rgb`, or `elevation` (a height ramp over the
+    /// scene's bounds).
+    #[arg(long, value_parser = parse_color_by, default_value = "rgb")]
+    pub color: farfield_render::ColorBy,
     /// Most nodes a frame draws (0: no budget).
     #[arg(long, default_value_t = 0)]
     pub budget: u64,
@@ -456,6 +460,11 @@ impl EdlArgs {
     }
 }
 
+/// A splat colouring by name.
+fn parse_color_by(s: &str) -> Result<farfield_render::ColorBy, String> {
+    farfield_render::ColorBy::from_name(s).ok_or_else(|| format!("{s} is not rgb or elevation"))
+}
+
 /// A finite number, 0 or more.
 fn parse_non_negative(s: &str) -> Result<f32, String> {
     match s.parse::<f32>() {
@@ -550,6 +559,10 @@ pub struct RenderArgs {
     pub kernel: KernelArg,
     #[command(flatten)]
     pub edl: EdlArgs,
+    /// What colors splats: `rgb`, or `elevation` (a height ramp over the
+    /// scene's bounds).
+    #[arg(long, value_parser = parse_color_by, default_value = "rgb")]
+    pub color: farfield_render::ColorBy,
     /// PLP files: the triangles a frame may draw, as a share of the scene
     /// (`5%`) or a count (`20000`); `all` draws everything.
     #[arg(long, default_value = "all")]
@@ -636,6 +649,7 @@ fn view_job(args: ViewArgs) -> anyhow::Result<commands::view::ViewJob> {
         threshold: args.threshold,
         kernel: args.kernel.into(),
         edl: args.edl.edl(),
+        color_by: args.color,
         node_budget: args.budget,
         cache_mib: args.cache_mib.max(1),
         plp_budget_percent: args.plp_budget.clamp(0.0, 100.0),

@@ -8,7 +8,7 @@ use std::time::Duration;
 
 use anyhow::{Context, bail};
 use farfield_net::SessionOptions;
-use farfield_render::{Coverage, Edl, Kernel, Renderer, SplatStyle};
+use farfield_render::{ColorBy, Coverage, Edl, Kernel, Renderer, SplatStyle};
 use web_time::Instant;
 
 use crate::budget::BudgetSpec;
@@ -40,6 +40,8 @@ pub struct RenderJob {
     pub kernel: Kernel,
     /// Eye-dome lighting over splats, or none.
     pub edl: Option<Edl>,
+    /// What colors splats.
+    pub color_by: ColorBy,
     /// Cubes: how face coverage is used.
     pub coverage: Coverage,
     pub session: SessionOptions,
@@ -99,6 +101,7 @@ pub fn run_with(
     let style = SplatStyle {
         kernel: job.kernel,
         edl: job.edl,
+        color_by: job.color_by,
         coverage: job.coverage,
         ..SplatStyle::default()
     };

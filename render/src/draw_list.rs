@@ -19,7 +19,15 @@ impl Renderer {
         style: &SplatStyle,
     ) -> anyhow::Result<RenderOutput> {
         match list {
-            DrawList::Splats(splats) => self.render(camera, splats, style),
+            DrawList::Splats(splats) => {
+                // An elevation ramp over the scene's heights, unless given.
+                let h = &hierarchy.header;
+                let style = SplatStyle {
+                    color_by: style.color_by.for_bounds(h.bounds_min, h.bounds_max),
+                    ..*style
+                };
+                self.render(camera, splats, &style)
+            }
             DrawList::Cubes(cut) => draw_cut(
                 self,
                 &CubeFrame {

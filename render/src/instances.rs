@@ -9,6 +9,8 @@ use bytemuck::{Pod, Zeroable};
 use farfield_protocol::camera::View;
 use farfield_traverse::spheres::Splat;
 
+use crate::ColorBy;
+
 /// Color of splats whose scene has no colors.
 pub const DEFAULT_COLOR: [u8; 3] = [200, 200, 200];
 
@@ -32,7 +34,12 @@ pub(crate) const STRIDE: u64 = std::mem::size_of::<GpuSplat>() as u64;
 /// Fills `out` with the splats whose center lies in front of the eye and
 /// returns the near-plane distance: the smallest `depth - radius` of those
 /// splats, but at least 1e-6 of the farthest `depth + radius`.
-pub(crate) fn pack(view: &View, splats: &[Splat], out: &mut Vec<GpuSplat>) -> f64 {
+pub(crate) fn pack(
+    view: &View,
+    splats: &[Splat],
+    color_by: ColorBy,
+    out: &mut Vec<GpuSplat>,
+) -> f64 {
     out.clear();
     out.reserve(splats.len());
     let (mut nearest, mut farthest) = (f64::INFINITY, 0.0f64);
@@ -51,7 +58,7 @@ pub(crate) fn pack(view: &View, splats: &[Splat], out: &mut Vec<GpuSplat>) -> f6
             Some(n) => [snorm16(n.x), snorm16(n.y), snorm16(n.z), i16::MAX],
             None => [0; 4],
         };
-        let [r, g, b] = s.color.unwrap_or(DEFAULT_COLOR);
+        let [r, g, b] = color_by.color(s.center, s.color.unwrap_or(DEFAULT_COLOR));
         out.push(GpuSplat {
             center: [
                 rel.dot(view.right) as f32,
@@ -110,7 +117,7 @@ mod tests {
         let view = camera.view(1.0);
         let splats = [splat(base + DVec3::new(2.0, 0.25, -0.125), 0.01)];
         let mut out = Vec::new();
-        pack(&view, &splats, &mut out);
+        pack(&view, &splats, ColorBy::Rgb, &mut out);
         // Looking along +X with Z up, right is -Y.
         assert_eq!(out[0].center, [-0.25, -0.125, 2.0]);
         assert_eq!(out[0].radius, 0.01);
@@ -143,14 +150,20 @@ mod tests {
                 splat(DVec3::new(-5.0, 0.0, 0.0), 1.0),
                 splat(DVec3::new(f64::NAN, 0.0, 0.0), 1.0),
             ],
+            ColorBy::Rgb,
             &mut out,
         );
         assert_eq!(out.len(), 2);
         assert_eq!(near, 9.0);
         // A splat around the eye: the floor at 1e-6 of the far distance.
-        let near = pack(&view, &[splat(DVec3::new(0.5, 0.0, 0.0), 1e3)], &mut out);
+        let near = pack(
+            &view,
+            &[splat(DVec3::new(0.5, 0.0, 0.0), 1e3)],
+            ColorBy::Rgb,
+            &mut out,
+        );
         assert!((near - 1000.5e-6).abs() < 1e-12, "{near}");
-        assert_eq!(pack(&view, &[], &mut out), 1.0);
+        assert_eq!(pack(&view, &[], ColorBy::Rgb, &mut out), 1.0);
         assert!(out.is_empty());
     }
 
@@ -163,7 +176,7 @@ mod tests {
             color: Some([1, 2, 3]),
             ..splat(DVec3::new(3.0, 0.0, 0.0), 1.0)
         };
-        pack(&camera.view(1.0), &[s], &mut out);
+        pack(&camera.view(1.0), &[s], ColorBy::Rgb, &mut out);
         assert_eq!(out[0].normal, [0, -32767, 16384, 32767]);
         assert_eq!(out[0].color, [1, 2, 3, 255]);
     }

@@ -26,6 +26,7 @@
 
 mod adapter;
 mod bsp;
+mod color_by;
 mod draw_list;
 mod edl;
 mod error_scope;
@@ -48,6 +49,7 @@ pub use adapter::{
     quiet_device_select_when_headless,
 };
 pub use bsp::pack_bsp_leaves;
+pub use color_by::{ColorBy, RAMP, ramp};
 pub use draw_list::{CubeFrame, draw_cut};
 pub use geometry::snorm4;
 pub use geometry::{Coverage, GpuVertex, pack_leaves};
@@ -109,6 +111,8 @@ pub struct SplatStyle {
     pub outline_caches: bool,
     /// Eye-dome lighting over splats, or none.
     pub edl: Option<Edl>,
+    /// What colors splats.
+    pub color_by: ColorBy,
 }
 
 /// Eye-dome lighting: each pixel darkened by how far its neighbours, at
@@ -140,6 +144,7 @@ impl Default for SplatStyle {
             coverage: Coverage::default(),
             outline_caches: false,
             edl: None,
+            color_by: ColorBy::Rgb,
         }
     }
 }

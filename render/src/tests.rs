@@ -36,6 +36,7 @@ fn style(kernel: Kernel) -> SplatStyle {
         coverage: Default::default(),
         outline_caches: false,
         edl: None,
+        color_by: Default::default(),
     }
 }
 

@@ -90,6 +90,7 @@ fn render(
         threshold_px: 1.0,
         kernel: Kernel::Square,
         edl: None,
+        color_by: Default::default(),
         coverage: Coverage::Alpha,
         session: SessionOptions::default(),
         cache_bytes: 256 << 20,

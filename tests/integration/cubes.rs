@@ -140,6 +140,7 @@ fn streamed_cubes_at_tiny_eps_equal_the_geometry_image() {
             threshold_px: 1e-9,
             kernel: Kernel::Square,
             edl: None,
+            color_by: Default::default(),
             coverage: Coverage::Alpha,
             session: SessionOptions::default(),
             cache_bytes: 256 << 20,

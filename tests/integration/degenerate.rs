@@ -155,6 +155,7 @@ fn psnr_of_renders(
             threshold_px: 1.0,
             kernel: Kernel::Square,
             edl: None,
+            color_by: Default::default(),
             coverage: Coverage::Alpha,
             session: SessionOptions::default(),
             cache_bytes: 256 << 20,

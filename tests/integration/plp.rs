@@ -571,6 +571,7 @@ fn streamed_plp_at_a_budget_equals_the_file_and_fetches_less() {
         threshold_px: 1.0,
         kernel: Default::default(),
         edl: None,
+        color_by: Default::default(),
         coverage: Default::default(),
         session: Default::default(),
         cache_bytes: 64 << 20,

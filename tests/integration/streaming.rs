@@ -71,6 +71,7 @@ pub(crate) fn job(source: Source, camera: CameraSpec) -> RenderJob {
         threshold_px: 1.0,
         kernel: Kernel::Square,
         edl: None,
+        color_by: Default::default(),
         coverage: Default::default(),
         session: SessionOptions::default(),
         cache_bytes: 256 << 20,

@@ -134,6 +134,7 @@ pub fn run_bench(job: &BenchStreamJob) -> anyhow::Result<BenchStreamReport> {
         threshold_px: 1.0,
         kernel: Kernel::Square,
         edl: None,
+        color_by: Default::default(),
         coverage: Default::default(),
         session: SessionOptions::default(),
         cache_bytes: usize::MAX,

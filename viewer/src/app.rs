@@ -412,6 +412,7 @@ impl ViewerApp {
         let style = SplatStyle {
             kernel: s.kernel,
             edl: s.edl,
+            color_by: s.color_by,
             coverage: s.coverage,
             outline_caches: s.outline_caches,
             ..SplatStyle::default()
@@ -516,6 +517,10 @@ impl ViewerApp {
         st.mb_received = stats.bytes_received as f64 / 1e6;
         st.in_flight_pages = self.viewer.outstanding();
         st.resident_pages = self.viewer.hierarchy().map_or(0, |h| h.resident_pages());
+        st.heights = self
+            .viewer
+            .header()
+            .map(|h| [h.bounds_min.z, h.bounds_max.z]);
         st.resident_mb = self
             .viewer
             .hierarchy()

@@ -1,7 +1,7 @@
 //! The panel: what the view is doing, and the settings a user changes
 //! while looking (rerun's and Potree's side panels are the model).
 
-use farfield_render::{Coverage, Edl, Kernel};
+use farfield_render::{ColorBy, Coverage, Edl, Kernel};
 
 use crate::status::Status;
 
@@ -14,6 +14,8 @@ pub struct Settings {
     /// Eye-dome lighting over splats (Potree's shading of point clouds),
     /// or none.
     pub edl: Option<Edl>,
+    /// What colors splats: their RGB, or their height on a ramp.
+    pub color_by: ColorBy,
     /// Cube hierarchies: how face coverage is used.
     pub coverage: Coverage,
     /// Most nodes a frame draws (Potree's point budget); 0 is none.
@@ -44,6 +46,7 @@ impl Default for Settings {
             threshold: 1.0,
             kernel: Kernel::Square,
             edl: None,
+            color_by: ColorBy::Rgb,
             coverage: Coverage::Alpha,
             node_budget: 0,
             target_frame_ms: 33.0,
@@ -174,7 +177,7 @@ pub fn show(
                     ui.separator();
                     egui::CollapsingHeader::new("view")
                         .default_open(true)
-                        .show(ui, |ui| settings_ui(ui, controls, settings));
+                        .show(ui, |ui| settings_ui(ui, controls, settings, status.heights));
                     egui::CollapsingHeader::new("demo")
                         .default_open(true)
                         .show(ui, |ui| actions.demo = demo.panel(ui));
@@ -226,6 +229,44 @@ fn stats(ui: &mut egui::Ui, status: &Status) {
     }
 }
 
+/// What colors splats, and the elevation ramp's legend (its colors from
+/// the lowest height of the scene to the highest) when it is chosen.
+fn color_ui(ui: &mut egui::Ui, color_by: &mut ColorBy, heights: Option<[f64; 2]>) {
+    ui.horizontal(|ui| {
+        ui.label("colour");
+        for mode in ColorBy::ALL {
+            let on = color_by.name() == mode.name();
+            if ui.selectable_label(on, mode.name()).clicked() {
+                *color_by = mode;
+            }
+        }
+    });
+    if !matches!(color_by, ColorBy::Elevation(_)) {
+        return;
+    }
+    let (rect, _) =
+        ui.allocate_exact_size(egui::vec2(ui.available_width(), 12.0), egui::Sense::hover());
+    let stops = farfield_render::RAMP.len();
+    let step = rect.width() / stops as f32;
+    for (i, [r, g, b]) in farfield_render::RAMP.into_iter().enumerate() {
+        let left = rect.left() + step * i as f32;
+        let cell = egui::Rect::from_min_max(
+            egui::pos2(left, rect.top()),
+            egui::pos2(left + step, rect.bottom()),
+        );
+        ui.painter()
+            .rect_filled(cell, 0.0, egui::Color32::from_rgb(r, g, b));
+    }
+    if let Some([low, high]) = heights {
+        ui.horizontal(|ui| {
+            ui.small(format!("{low:.2}"));
+            ui.with_layout(egui::Layout::right_to_left(egui::Align::Center), |ui| {
+                ui.small(format!("{high:.2} (height)"));
+            });
+        });
+    }
+}
+
 /// Eye-dome lighting on or off, and its strength and radius when on.
 fn edl_ui(ui: &mut egui::Ui, edl: &mut Option<Edl>) {
     let mut on = edl.is_some();
@@ -239,7 +280,12 @@ fn edl_ui(ui: &mut egui::Ui, edl: &mut Option<Edl>) {
 }
 
 /// The settings the scene's kind reads, then those every kind has.
-fn settings_ui(ui: &mut egui::Ui, controls: Controls, settings: &mut Settings) {
+fn settings_ui(
+    ui: &mut egui::Ui,
+    controls: Controls,
+    settings: &mut Settings,
+    status_heights: Option<[f64; 2]>,
+) {
     if controls.kernel {
         ui.horizontal(|ui| {
             ui.label("splats");
@@ -248,6 +294,7 @@ fn settings_ui(ui: &mut egui::Ui, controls: Controls, settings: &mut Settings) {
             }
         });
         edl_ui(ui, &mut settings.edl);
+        color_ui(ui, &mut settings.color_by, status_heights);
     }
     if controls.threshold {
         ui.add(egui::Slider::new(&mut settings.threshold, 0.0..=16.0).text("threshold / eps (px)"));

@@ -66,6 +66,9 @@ pub struct Status {
     pub error: Option<String>,
     /// The demo session, in a line ("following demo (member 3); ...").
     pub demo: Option<String>,
+    /// The scene's lowest and highest heights (the elevation ramp's ends).
+    #[serde(skip)]
+    pub heights: Option<[f64; 2]>,
     /// Where the panel's screenshot button is (x, y, width, height in
     /// points, a page's CSS pixels), while the panel shows: what a script
     /// clicks.

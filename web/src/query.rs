@@ -1,5 +1,5 @@
 //! The viewer's options from the page's query string:
-//! `?panel=0&backend=webgl&kernel=round&edl=1&edl_strength=S&edl_radius=PX&threshold=2&budget=N&plp_budget=P&plp_budget_ms=MS&epsilon_px=E&outlines=1&cache_mib=M&access_token=T`,
+//! `?panel=0&backend=webgl&kernel=round&color=elevation&edl=1&edl_strength=S&edl_radius=PX&threshold=2&budget=N&plp_budget=P&plp_budget_ms=MS&epsilon_px=E&outlines=1&cache_mib=M&access_token=T`,
 //! `flight=SECONDS` (the benchmark's scripted flight), and
 //! `session=NAME&role=follow|present` (a demo session), and
 //! `fallback=webgpu-lost` (set by the page itself: see [`WEBGPU_LOST`]).
@@ -81,6 +81,10 @@ pub fn parse(search: &str) -> Result<Query, String> {
         strength: strength.map_or(default.strength, |v| v as f32),
         radius_px: radius.map_or(default.radius_px, |v| v as f32),
     });
+    if let Some(name) = params.get("color") {
+        options.settings.color_by = farfield_render::ColorBy::from_name(&name)
+            .ok_or_else(|| format!("color={name} is not rgb or elevation"))?;
+    }
     options.settings.kernel = match params.get("kernel") {
         None => Kernel::Square,
         Some(name) => Kernel::from_name(&name)

@@ -50,6 +50,7 @@ pub fn run(args: RenderArgs) -> anyhow::Result<()> {
         threshold_px: threshold,
         kernel: args.kernel.into(),
         edl: args.edl.edl(),
+        color_by: args.color,
         coverage: args.coverage,
         session: SessionOptions {
             allow_push: args.push,
@@ -155,6 +156,7 @@ fn fly_path(
         style: SplatStyle {
             kernel: job.kernel,
             edl: job.edl,
+            color_by: job.color_by,
             coverage: job.coverage,
             ..SplatStyle::default()
         },

@@ -672,26 +672,86 @@ fn eye_dome_lighting_in_the_browser_draws_the_headless_image() {
             "{name}, headless: EDL keeps {darker:.3} of the brightness, {apart:.1} dB from plain"
         );
         assert!(darker < 0.97, "{name}: EDL darkens little: {darker:.3}");
-        for backend in ["webgpu", "webgl"] {
-            browser.goto(&format!(
-                "http://{}/view/bunny?panel=0&backend={backend}&kernel={name}&edl=1#{START}",
-                server.local_addr()
-            ));
-            browser.wait_for(backend, REFINED, REPORT, WAIT);
-            let (_, _, shot) = browser.canvas_pixels();
-            let (to_shaded, to_plain) = (
-                psnr(&shaded, &shot, SIZE.0, SIZE.1),
-                psnr(&plain, &shot, SIZE.0, SIZE.1),
-            );
-            eprintln!(
-                "{name}, {backend}: {to_shaded:.1} dB from headless EDL, {to_plain:.1} dB from plain"
-            );
-            assert!(
-                to_shaded >= 30.0 && to_shaded > to_plain + 3.0,
-                "{name}, {backend}: {to_shaded:.1} dB from headless EDL, {to_plain:.1} dB from plain"
-            );
-        }
+        let query = format!("kernel={name}&edl=1");
+        draws_like(&browser, &server, &query, &shaded, &plain);
     }
     drop(browser);
     rt.block_on(server.shutdown()).unwrap();
+}
+
+/// Colouring by elevation (`?color=elevation`) draws what `farfield render
+/// --color elevation` draws, on WebGPU and WebGL2: the bunny (Y-up, built
+/// upright) runs from the ramp's violet blue at its feet to red at the
+/// tips of its ears.
+#[test]
+fn colour_by_elevation_in_the_browser_draws_the_headless_ramp() {
+    let _one = ONE_BROWSER.lock().unwrap_or_else(|e| e.into_inner());
+    let Some((dir, bunny, web)) = setup("viewer-elevation") else {
+        return;
+    };
+    let rt = runtime();
+    let server = rt.block_on(serve(&dir, &web, "127.0.0.1:0".parse().unwrap()));
+    let browser = Browser::start(SIZE.0, SIZE.1);
+    let camera = camera_of_fragment(START);
+    let ramp = farfield_render::ColorBy::Elevation(None);
+    let expected = reference_with(&bunny, camera, SIZE, |job| job.color_by = ramp).unwrap();
+    let plain = reference(&bunny, camera, SIZE.0, SIZE.1).unwrap();
+    // Red against blue in the top and bottom thirds of the rows the
+    // bunny covers.
+    let lit_pixel = |rgba: &[u8], x: u32, y: u32| -> Option<[u8; 3]> {
+        let p = &rgba[((y * SIZE.0 + x) * 4) as usize..][..4];
+        (u32::from(p[0]) + u32::from(p[1]) + u32::from(p[2]) > 30).then_some([p[0], p[1], p[2]])
+    };
+    let rows: Vec<u32> = (0..SIZE.1)
+        .filter(|&y| (0..SIZE.0).any(|x| lit_pixel(&expected, x, y).is_some()))
+        .collect();
+    let (first, last) = (rows[0], rows[rows.len() - 1]);
+    let third = (last - first) / 3;
+    let warmth = |rows: std::ops::Range<u32>| -> f64 {
+        let (mut red, mut blue) = (0u64, 0u64);
+        for y in rows {
+            for p in (0..SIZE.0).filter_map(|x| lit_pixel(&expected, x, y)) {
+                (red, blue) = (red + u64::from(p[0]), blue + u64::from(p[2]));
+            }
+        }
+        red as f64 / blue.max(1) as f64
+    };
+    let (top, bottom) = (warmth(first..first + third), warmth(last - third..last + 1));
+    eprintln!("headless: red/blue {top:.2} in the top third, {bottom:.2} in the bottom");
+    assert!(top > bottom * 1.5, "top {top:.2}, bottom {bottom:.2}");
+    draws_like(&browser, &server, "color=elevation", &expected, &plain);
+    drop(browser);
+    rt.block_on(server.shutdown()).unwrap();
+}
+
+/// The bunny with the page's `query`, on WebGPU and WebGL2, refined: the
+/// headless render of `expected` (within 30 dB), and nearer it than the
+/// `plain` one.
+fn draws_like(
+    browser: &Browser,
+    server: &RunningServer,
+    query: &str,
+    expected: &[u8],
+    plain: &[u8],
+) {
+    for backend in ["webgpu", "webgl"] {
+        browser.goto(&format!(
+            "http://{}/view/bunny?panel=0&backend={backend}&{query}#{START}",
+            server.local_addr()
+        ));
+        browser.wait_for(backend, REFINED, REPORT, WAIT);
+        let (_, _, shot) = browser.canvas_pixels();
+        let (to_expected, to_plain) = (
+            psnr(expected, &shot, SIZE.0, SIZE.1),
+            psnr(plain, &shot, SIZE.0, SIZE.1),
+        );
+        let what = format!(
+            "{query}, {backend}: {to_expected:.1} dB from headless, {to_plain:.1} dB from plain"
+        );
+        eprintln!("{what}");
+        assert!(
+            to_expected >= 30.0 && to_expected > to_plain + 3.0,
+            "{what}"
+        );
+    }
 }
