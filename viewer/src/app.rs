@@ -350,6 +350,14 @@ impl ViewerApp {
             .flatten();
         let reset = ui.input(|i| i.key_pressed(egui::Key::R)) || self.status.reset_requested;
         self.status.reset_requested = false;
+        let preset = ui
+            .input(|i| {
+                crate::rig::Preset::ALL
+                    .into_iter()
+                    .find(|(_, _, key)| i.key_pressed(*key))
+                    .map(|(preset, _, _)| preset)
+            })
+            .or(self.status.preset_requested.take());
         self.make_rig();
         let Some(rig) = self.rig.as_mut() else {
             ui.painter().rect_filled(rect, 0.0, Color32::BLACK);
@@ -357,6 +365,10 @@ impl ViewerApp {
         };
         if reset {
             rig.reset();
+        }
+        if let (Some(preset), Some(header)) = (preset, self.viewer.header()) {
+            let fov = rig.goal().fov_y_deg;
+            rig.go_to(crate::rig::Orbit::preset(header, fov, preset));
         }
         rig.apply(&input, flying, rect.height() * ppp, dt);
         self.demo.steer(rig, input != Default::default());
@@ -601,6 +613,9 @@ impl eframe::App for ViewerApp {
                 .screenshot_button
                 .map(|r| [r.min.x, r.min.y, r.width(), r.height()]);
             self.status.reset_requested |= action.reset;
+            if action.preset.is_some() {
+                self.status.preset_requested = action.preset;
+            }
             self.show_panel &= !action.hide;
         } else if ui.input(|i| {
             // The button to bring the panel back shows only while the

@@ -115,6 +115,8 @@ pub struct Actions {
     pub buttons: Option<egui::Rect>,
     /// Where the screenshot button is on screen.
     pub screenshot_button: Option<egui::Rect>,
+    /// A preset view asked for.
+    pub preset: Option<crate::rig::Preset>,
 }
 
 /// Which of the panel's controls a scene's kind reads, from the settings
@@ -182,6 +184,13 @@ pub fn show(
                         .default_open(true)
                         .show(ui, |ui| actions.demo = demo.panel(ui));
                     ui.separator();
+                    ui.horizontal_wrapped(|ui| {
+                        for (preset, name, _) in crate::rig::Preset::ALL {
+                            if ui.button(name).clicked() {
+                                actions.preset = Some(preset);
+                            }
+                        }
+                    });
                     let row = ui.horizontal_wrapped(|ui| {
                         actions.reset = ui.button("reset (R)").clicked();
                         let screenshot = ui.button("screenshot");

@@ -25,6 +25,29 @@ pub const ZOOM_PER_STEP: f64 = 0.15;
 /// The shown camera lands on the goal once this close (relative units).
 const LANDED: f64 = 1e-4;
 
+/// The views a panel button or a key gives (Potree's and CAD viewers'
+/// preset views): the whole scene from above, from the front (-Y), from
+/// the left (-X), or from the default direction.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Preset {
+    Top,
+    Front,
+    Left,
+    Fit,
+}
+
+impl Preset {
+    /// Every preset, with its name and key, in the order a panel lists
+    /// them (the keys are a numeric keypad's, as in Blender: 7 top, 1
+    /// front, 3 the side; 0 fits).
+    pub const ALL: [(Preset, &'static str, egui::Key); 4] = [
+        (Preset::Top, "top (7)", egui::Key::Num7),
+        (Preset::Front, "front (1)", egui::Key::Num1),
+        (Preset::Left, "left (3)", egui::Key::Num3),
+        (Preset::Fit, "fit (0)", egui::Key::Num0),
+    ];
+}
+
 /// A camera as an orbit: where it looks, from how far, from which direction.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Orbit {
@@ -85,6 +108,21 @@ impl Orbit {
             pitch: elevation.to_radians(),
             fov_y_deg,
         }
+    }
+
+    /// The whole scene in view from `preset`'s direction.
+    pub fn preset(header: &FileHeader, fov_y_deg: f64, preset: Preset) -> Self {
+        let fit = Self::fit(header, fov_y_deg);
+        let quarter = std::f64::consts::FRAC_PI_2;
+        let (yaw, pitch) = match preset {
+            Preset::Fit => return fit,
+            // Looking down, +Y up on screen.
+            Preset::Top => (-quarter, MAX_PITCH),
+            // From -Y toward +Y, and from -X toward +X.
+            Preset::Front => (-quarter, 0.0),
+            Preset::Left => (std::f64::consts::PI, 0.0),
+        };
+        Self { yaw, pitch, ..fit }
     }
 
     /// The orbit a camera spec resolves to for this scene.
@@ -215,6 +253,11 @@ impl CameraRig {
     /// Back to where the rig started (fit-to-scene, or the link's view).
     pub fn reset(&mut self) {
         self.goal = self.home;
+    }
+
+    /// Eases to `orbit` (a preset view).
+    pub fn go_to(&mut self, orbit: Orbit) {
+        self.goal = orbit;
     }
 
     /// Jumps (without easing) to `orbit`, e.g. a link's camera.

@@ -211,3 +211,28 @@ fn focus_and_reset() {
     rig.reset();
     assert_eq!(rig.goal(), &start);
 }
+
+/// Each preset frames the whole scene (the fit's distance, around its
+/// center) from its own side: above, the front (-Y), the left (-X).
+#[test]
+fn preset_views_look_from_their_side_at_the_whole_scene() {
+    let h = header();
+    let fit = Orbit::fit(&h, 45.0);
+    assert_eq!(Orbit::preset(&h, 45.0, Preset::Fit), fit);
+    for (preset, side) in [
+        (Preset::Top, DVec3::Z),
+        (Preset::Front, -DVec3::Y),
+        (Preset::Left, -DVec3::X),
+    ] {
+        let o = Orbit::preset(&h, 45.0, preset);
+        assert_eq!((o.target, o.distance), (fit.target, fit.distance));
+        let back = (o.eye() - o.target).normalize();
+        assert!(back.dot(side) > 0.999, "{preset:?}: from {back}");
+        // The screen's up stays +Z-ward, or (from above) +Y-ward.
+        let c = o.camera(64, 48);
+        assert!(c.eye.is_finite(), "{preset:?}");
+    }
+    let top = Orbit::preset(&h, 45.0, Preset::Top);
+    let (_, up) = top.axes();
+    assert!(up.dot(DVec3::Y) > 0.99, "top view's screen up: {up}");
+}

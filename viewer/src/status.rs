@@ -78,6 +78,8 @@ pub struct Status {
     pub camera: Option<CameraSpec>,
     #[serde(skip)]
     pub(crate) reset_requested: bool,
+    #[serde(skip)]
+    pub(crate) preset_requested: Option<crate::rig::Preset>,
 }
 
 /// The frame time the panel shows, from the gaps between frames drawn one

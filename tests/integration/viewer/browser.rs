@@ -755,3 +755,41 @@ fn draws_like(
         );
     }
 }
+
+/// The preset views' keys (7 top, 1 front, 3 left) move the camera to look
+/// at the scene from that side, and the link says so once it rests.
+#[test]
+fn preset_view_keys_look_from_above_the_front_and_the_left() {
+    let _one = ONE_BROWSER.lock().unwrap_or_else(|e| e.into_inner());
+    let Some((dir, _, web)) = setup("viewer-presets") else {
+        return;
+    };
+    let rt = runtime();
+    let server = rt.block_on(serve(&dir, &web, "127.0.0.1:0".parse().unwrap()));
+    let browser = Browser::start(SIZE.0, SIZE.1);
+    browser.goto(&format!(
+        "http://{}/view/bunny?panel=0#{START}",
+        server.local_addr()
+    ));
+    browser.wait_for("refined", REFINED, REPORT, WAIT);
+    let start = eye_target(START);
+    for (key, side) in [
+        ("7", glam::DVec3::Z),
+        ("1", -glam::DVec3::Y),
+        ("3", -glam::DVec3::X),
+    ] {
+        let before = browser.eval("return location.hash");
+        let before = before.as_str().unwrap_or_default().to_owned();
+        browser.hold_key(key, 50);
+        let after = refined_away_from(&browser, &before, &format!("key {key}"));
+        let (eye, target) = eye_target(&after);
+        let back = (eye - target).normalize();
+        assert!(back.dot(side) > 0.99, "key {key}: looking from {back}");
+        assert!(
+            (target - start.1).length() < 0.2,
+            "key {key}: looking at {target}, not the bunny"
+        );
+    }
+    drop(browser);
+    rt.block_on(server.shutdown()).unwrap();
+}
