@@ -153,6 +153,8 @@ pub struct ViewerApp {
     rgba: Vec<u8>,
     show_panel: bool,
     flying: bool,
+    /// The measuring tool and its points.
+    measure: crate::measure::Measure,
     status: Status,
     last_frame: Instant,
     rested_at: Option<CameraSpec>,
@@ -276,6 +278,7 @@ impl ViewerApp {
             cut: FrameState::default(),
             rgba: Vec::new(),
             flying: false,
+            measure: Default::default(),
             status,
             last_frame: Instant::now(),
             rested_at: None,
@@ -344,10 +347,23 @@ impl ViewerApp {
         );
         let input = read_input(ui, &response, rect, &mut self.flying);
         let flying = self.flying;
-        let pick = response
-            .double_clicked()
-            .then(|| response.interact_pointer_pos())
-            .flatten();
+        // A click picks a point to measure while the tool is on (and a
+        // double-click no longer focuses); a double-click focuses otherwise.
+        let (pick, measured) = {
+            let at = response.interact_pointer_pos();
+            if self.measure.on {
+                (None, response.clicked().then_some(at).flatten())
+            } else {
+                (response.double_clicked().then_some(at).flatten(), None)
+            }
+        };
+        if ui.input(|i| i.key_pressed(egui::Key::M)) || self.status.measure_toggled {
+            self.measure.toggle();
+        }
+        if ui.input(|i| i.key_pressed(egui::Key::Escape)) && self.measure.on {
+            self.measure.toggle();
+        }
+        self.status.measure_toggled = false;
         let reset = ui.input(|i| i.key_pressed(egui::Key::R)) || self.status.reset_requested;
         self.status.reset_requested = false;
         let preset = ui
@@ -377,12 +393,16 @@ impl ViewerApp {
             let next = flight.next(rig.shown(), dt);
             rig.jump(next);
         }
-        if let Some(at) = pick
+        if let Some(at) = pick.or(measured)
             && let Some(DrawList::Splats(splats)) = self.cut.draw_list()
         {
             let camera = rig.shown().camera(width, height);
             let px = ((at - rect.min) * ppp).to_pos2();
-            if let Some(point) = pick_splat(splats, &camera, px.x, px.y) {
+            if measured.is_some() {
+                if let Some(point) = crate::pick::pick_point(splats, &camera, px.x, px.y) {
+                    self.measure.points.push(point);
+                }
+            } else if let Some(point) = pick_splat(splats, &camera, px.x, px.y) {
                 rig.focus(point);
             }
         }
@@ -417,6 +437,7 @@ impl ViewerApp {
             && self.drawn.as_ref() == Some(&view)
         {
             self.show_texture(ui, rect, frame);
+            self.draw_measure(ui, rect, &camera, ppp);
             return;
         }
         renderer.resize(width, height);
@@ -471,6 +492,7 @@ impl ViewerApp {
             Err(e) => self.status.error = Some(format!("{e:#}")),
         }
         self.show_texture(ui, rect, frame);
+        self.draw_measure(ui, rect, &camera, ppp);
         if let Some(spec) = rest_spec
             && self.refine.refined()
             && self.rested_at != Some(spec)
@@ -516,6 +538,32 @@ impl ViewerApp {
         ui.painter().image(id, rect, uv, Color32::WHITE);
     }
 
+    /// The measuring tool's path over the picture: its points and the
+    /// lines between them.
+    fn draw_measure(
+        &self,
+        ui: &egui::Ui,
+        rect: Rect,
+        camera: &farfield_protocol::camera::Camera,
+        ppp: f32,
+    ) {
+        let on_screen: Vec<egui::Pos2> = self
+            .measure
+            .points
+            .iter()
+            .filter_map(|&p| crate::measure::project(camera, p))
+            .map(|(x, y)| rect.min + egui::vec2(x as f32, y as f32) / ppp)
+            .collect();
+        let painter = ui.painter_at(rect);
+        let stroke = egui::Stroke::new(2.0, Color32::from_rgb(255, 220, 40));
+        for pair in on_screen.windows(2) {
+            painter.line_segment([pair[0], pair[1]], stroke);
+        }
+        for &p in &on_screen {
+            painter.circle_filled(p, 4.0, stroke.color);
+        }
+    }
+
     /// Refreshes the status the panel shows and the platform reads.
     fn update_status(&mut self, dt: f64) {
         let st = &mut self.status;
@@ -525,6 +573,8 @@ impl ViewerApp {
         st.fps = self.clock.fps();
         st.at_rest = !self.busy;
         st.notice = self.notice.as_ref().map(|(text, _)| text.clone());
+        st.measure = self.measure.measured();
+        st.measuring = self.measure.on;
         let stats = self.viewer.stats();
         st.mb_received = stats.bytes_received as f64 / 1e6;
         st.in_flight_pages = self.viewer.outstanding();
@@ -616,6 +666,7 @@ impl eframe::App for ViewerApp {
             if action.preset.is_some() {
                 self.status.preset_requested = action.preset;
             }
+            self.status.measure_toggled |= action.measure;
             self.show_panel &= !action.hide;
         } else if ui.input(|i| {
             // The button to bring the panel back shows only while the

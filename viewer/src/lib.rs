@@ -23,6 +23,7 @@ pub mod demo_panel;
 pub mod flight;
 pub mod input;
 pub mod link;
+pub mod measure;
 pub mod panel;
 pub mod pick;
 pub mod refine;

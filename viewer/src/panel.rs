@@ -117,6 +117,8 @@ pub struct Actions {
     pub screenshot_button: Option<egui::Rect>,
     /// A preset view asked for.
     pub preset: Option<crate::rig::Preset>,
+    /// The measuring tool turned on or off.
+    pub measure: bool,
 }
 
 /// Which of the panel's controls a scene's kind reads, from the settings
@@ -184,6 +186,7 @@ pub fn show(
                         .default_open(true)
                         .show(ui, |ui| actions.demo = demo.panel(ui));
                     ui.separator();
+                    measure_ui(ui, status, &mut actions);
                     ui.horizontal_wrapped(|ui| {
                         for (preset, name, _) in crate::rig::Preset::ALL {
                             if ui.button(name).clicked() {
@@ -235,6 +238,33 @@ fn stats(ui: &mut egui::Ui, status: &Status) {
     ui.add(egui::ProgressBar::new(status.progress as f32).text(label));
     if let Some(e) = &status.last_error {
         ui.small(format!("last error: {e}"));
+    }
+}
+
+/// The measuring tool's switch, and what its points measure (in the
+/// scene's units).
+fn measure_ui(ui: &mut egui::Ui, status: &Status, actions: &mut Actions) {
+    ui.horizontal_wrapped(|ui| {
+        let label = if status.measuring {
+            "stop measuring (M)"
+        } else {
+            "measure (M)"
+        };
+        actions.measure = ui.button(label).clicked();
+        if status.measuring && status.measure.is_none() {
+            ui.small("click points");
+        }
+    });
+    if let Some(m) = &status.measure {
+        ui.small(format!(
+            "{} points · distance {:.3} · height {:+.3}",
+            m.points.len(),
+            m.distance,
+            m.height
+        ));
+        if let Some(area) = m.area {
+            ui.small(format!("area {area:.3} (closed)"));
+        }
     }
 }
 

@@ -9,6 +9,18 @@ use glam::DVec3;
 /// The point where the ray through pixel (`x`, `y`) (from the top left)
 /// first meets a drawn splat's sphere, if any does.
 pub fn pick_splat(splats: &[Splat], camera: &Camera, x: f32, y: f32) -> Option<DVec3> {
+    first_hit(splats, camera, x, y).map(|(point, _)| point)
+}
+
+/// The center of the splat the ray through pixel (`x`, `y`) first meets:
+/// a point of the scene itself (a measurement's), not the surface of the
+/// sphere drawn for it, which stands out from it by the splat's radius.
+pub fn pick_point(splats: &[Splat], camera: &Camera, x: f32, y: f32) -> Option<DVec3> {
+    first_hit(splats, camera, x, y).map(|(_, center)| center)
+}
+
+/// Where the ray first meets a splat's sphere, and that splat's center.
+fn first_hit(splats: &[Splat], camera: &Camera, x: f32, y: f32) -> Option<(DVec3, DVec3)> {
     let view = camera.view(1.0);
     let (w, h) = (f64::from(view.width.max(1)), f64::from(view.height.max(1)));
     let ndc_x = (f64::from(x) + 0.5) / w * 2.0 - 1.0;
@@ -17,7 +29,7 @@ pub fn pick_splat(splats: &[Splat], camera: &Camera, x: f32, y: f32) -> Option<D
         + view.right * (ndc_x * view.tan_half_x)
         + view.up * (ndc_y * view.tan_half_y))
         .try_normalize()?;
-    let mut best: Option<f64> = None;
+    let mut best: Option<(f64, DVec3)> = None;
     for s in splats {
         let to = s.center - view.eye;
         let along = to.dot(dir);
@@ -27,11 +39,11 @@ pub fn pick_splat(splats: &[Splat], camera: &Camera, x: f32, y: f32) -> Option<D
             continue;
         }
         let hit = along - (r2 - miss2).sqrt();
-        if hit > 0.0 && best.is_none_or(|b| hit < b) {
-            best = Some(hit);
+        if hit > 0.0 && best.is_none_or(|(b, _)| hit < b) {
+            best = Some((hit, s.center));
         }
     }
-    best.map(|t| view.eye + dir * t)
+    best.map(|(t, center)| (view.eye + dir * t, center))
 }
 
 #[cfg(test)]

@@ -66,6 +66,12 @@ pub struct Status {
     pub error: Option<String>,
     /// The demo session, in a line ("following demo (member 3); ...").
     pub demo: Option<String>,
+    /// What the measuring tool's points measure, while it has some.
+    pub measure: Option<crate::measure::Measured>,
+    /// The measuring tool is on: clicks pick points.
+    pub measuring: bool,
+    #[serde(skip)]
+    pub(crate) measure_toggled: bool,
     /// The scene's lowest and highest heights (the elevation ramp's ends).
     #[serde(skip)]
     pub heights: Option<[f64; 2]>,

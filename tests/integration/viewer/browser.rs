@@ -793,3 +793,73 @@ fn preset_view_keys_look_from_above_the_front_and_the_left() {
     drop(browser);
     rt.block_on(server.shutdown()).unwrap();
 }
+
+/// The measuring tool (M, then a click on each point) measures between
+/// the points picked, within 1 % of the true distance: on a flat square
+/// of points 100 units wide, looked at from above and aside, the true
+/// points are where the clicked pixels' rays meet its plane.
+#[test]
+fn a_measurement_between_two_picked_points_is_the_true_distance() {
+    use farfield_builder::scene::{Geometry, Primitives, Scene};
+    let _one = ONE_BROWSER.lock().unwrap_or_else(|e| e.into_inner());
+    let Some((dir, _, web)) = setup("viewer-measure") else {
+        return;
+    };
+    let positions = (0..=200)
+        .flat_map(|y| (0..=200).map(move |x| glam::DVec3::new(x as f64 * 0.5, y as f64 * 0.5, 0.0)))
+        .collect();
+    let scene = Scene::single(Geometry::new("plane", positions, Primitives::Points));
+    farfield_store::write_atomic(&dir.join("plane.ff"), &crate::build(scene)).unwrap();
+    let rt = runtime();
+    let server = rt.block_on(serve(&dir, &web, "127.0.0.1:0".parse().unwrap()));
+    let browser = Browser::start(SIZE.0, SIZE.1);
+    let link = "eye=50,-10,90&target=50,50,0&fov=45";
+    browser.goto(&format!(
+        "http://{}/view/plane?panel=0#{link}",
+        server.local_addr()
+    ));
+    browser.wait_for("refined", REFINED, REPORT, WAIT);
+    let (eye, target) = eye_target(link);
+    let camera = farfield_protocol::camera::Camera {
+        eye,
+        target,
+        up: glam::DVec3::Z,
+        fov_y_deg: 45.0,
+        width: SIZE.0,
+        height: SIZE.1,
+    };
+    // Where the ray through a pixel's center meets the plane z = 0.
+    let on_plane = |(x, y): (i64, i64)| -> glam::DVec3 {
+        let view = camera.view(1.0);
+        let ndc_x = (x as f64 + 0.5) / f64::from(SIZE.0) * 2.0 - 1.0;
+        let ndc_y = 1.0 - (y as f64 + 0.5) / f64::from(SIZE.1) * 2.0;
+        let dir = view.forward
+            + view.right * (ndc_x * view.tan_half_x)
+            + view.up * (ndc_y * view.tan_half_y);
+        eye + dir * (-eye.z / dir.z)
+    };
+    browser.hold_key("m", 50);
+    let (a, b) = ((70, 60), (250, 190));
+    for at in [a, b] {
+        browser.click(at.0, at.1);
+    }
+    browser.wait_for(
+        "two points measured",
+        "const s = JSON.parse(document.getElementById('farfield').dataset.status || '{}'); \
+         return !!s.measure && s.measure.points.length === 2",
+        REPORT,
+        WAIT,
+    );
+    let measured = status(&browser)["measure"]["distance"]
+        .as_f64()
+        .unwrap_or(f64::NAN);
+    let truth = on_plane(a).distance(on_plane(b));
+    eprintln!("measured {measured:.3} between two picked points; the true distance {truth:.3}");
+    assert!(truth > 30.0, "the clicks are far apart: {truth}");
+    assert!(
+        ((measured - truth) / truth).abs() < 0.01,
+        "measured {measured:.3}, true {truth:.3}"
+    );
+    drop(browser);
+    rt.block_on(server.shutdown()).unwrap();
+}
