@@ -202,6 +202,8 @@ pub struct ViewArgs {
     /// scene's bounds).
     #[arg(long, value_parser = parse_color_by, default_value = "rgb")]
     pub color: farfield_render::ColorBy,
+    #[command(flatten)]
+    pub clip: ClipArgs,
     /// Most nodes a frame draws (0: no budget).
     #[arg(long, default_value_t = 0)]
     pub budget: u64,
@@ -460,6 +462,35 @@ impl EdlArgs {
     }
 }
 
+/// The clipping box over splats (Potree's).
+#[derive(Debug, Clone, Copy, clap::Args)]
+pub struct ClipArgs {
+    /// Draw only the splats inside the clipping box, or only those outside.
+    #[arg(long, value_enum)]
+    pub clip: Option<KeepArg>,
+    /// The box as shares of the scene's bounds: x0,y0,z0,x1,y1,z1, each 0
+    /// to 1 (default: the whole scene).
+    #[arg(long, value_parser = farfield_render::clip::parse_box, requires = "clip")]
+    pub clip_box: Option<[f64; 6]>,
+}
+
+impl ClipArgs {
+    pub fn clip(self) -> Option<farfield_render::Clip> {
+        let keep = match self.clip? {
+            KeepArg::Inside => farfield_render::Keep::Inside,
+            KeepArg::Outside => farfield_render::Keep::Outside,
+        };
+        let corners = self.clip_box.unwrap_or([0.0, 0.0, 0.0, 1.0, 1.0, 1.0]);
+        Some(farfield_render::Clip::from_corners(corners, keep))
+    }
+}
+
+#[derive(Debug, Clone, Copy, ValueEnum)]
+pub enum KeepArg {
+    Inside,
+    Outside,
+}
+
 /// A splat colouring by name.
 fn parse_color_by(s: &str) -> Result<farfield_render::ColorBy, String> {
     farfield_render::ColorBy::from_name(s).ok_or_else(|| format!("{s} is not rgb or elevation"))
@@ -563,6 +594,8 @@ pub struct RenderArgs {
     /// scene's bounds).
     #[arg(long, value_parser = parse_color_by, default_value = "rgb")]
     pub color: farfield_render::ColorBy,
+    #[command(flatten)]
+    pub clip: ClipArgs,
     /// PLP files: the triangles a frame may draw, as a share of the scene
     /// (`5%`) or a count (`20000`); `all` draws everything.
     #[arg(long, default_value = "all")]
@@ -650,6 +683,7 @@ fn view_job(args: ViewArgs) -> anyhow::Result<commands::view::ViewJob> {
         kernel: args.kernel.into(),
         edl: args.edl.edl(),
         color_by: args.color,
+        clip: args.clip.clip(),
         node_budget: args.budget,
         cache_mib: args.cache_mib.max(1),
         plp_budget_percent: args.plp_budget.clamp(0.0, 100.0),

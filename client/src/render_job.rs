@@ -8,7 +8,7 @@ use std::time::Duration;
 
 use anyhow::{Context, bail};
 use farfield_net::SessionOptions;
-use farfield_render::{ColorBy, Coverage, Edl, Kernel, Renderer, SplatStyle};
+use farfield_render::{Clip, ColorBy, Coverage, Edl, Kernel, Renderer, SplatStyle};
 use web_time::Instant;
 
 use crate::budget::BudgetSpec;
@@ -42,6 +42,8 @@ pub struct RenderJob {
     pub edl: Option<Edl>,
     /// What colors splats.
     pub color_by: ColorBy,
+    /// The clipping box over splats, or none.
+    pub clip: Option<Clip>,
     /// Cubes: how face coverage is used.
     pub coverage: Coverage,
     pub session: SessionOptions,
@@ -102,6 +104,7 @@ pub fn run_with(
         kernel: job.kernel,
         edl: job.edl,
         color_by: job.color_by,
+        clip: job.clip,
         coverage: job.coverage,
         ..SplatStyle::default()
     };

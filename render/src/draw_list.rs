@@ -24,6 +24,7 @@ impl Renderer {
                 let h = &hierarchy.header;
                 let style = SplatStyle {
                     color_by: style.color_by.for_bounds(h.bounds_min, h.bounds_max),
+                    clip: style.clip.map(|c| c.in_bounds(h.bounds_min, h.bounds_max)),
                     ..*style
                 };
                 self.render(camera, splats, &style)

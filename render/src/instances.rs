@@ -9,7 +9,7 @@ use bytemuck::{Pod, Zeroable};
 use farfield_protocol::camera::View;
 use farfield_traverse::spheres::Splat;
 
-use crate::ColorBy;
+use crate::{Clip, ColorBy};
 
 /// Color of splats whose scene has no colors.
 pub const DEFAULT_COLOR: [u8; 3] = [200, 200, 200];
@@ -38,6 +38,7 @@ pub(crate) fn pack(
     view: &View,
     splats: &[Splat],
     color_by: ColorBy,
+    clip: Option<Clip>,
     out: &mut Vec<GpuSplat>,
 ) -> f64 {
     out.clear();
@@ -48,7 +49,7 @@ pub(crate) fn pack(
         let depth = rel.dot(view.forward);
         // Also drops NaN: a quad is drawn at its center's depth, so a center
         // behind the eye is never visible.
-        if !(depth > 0.0 && s.radius.is_finite()) {
+        if !(depth > 0.0 && s.radius.is_finite()) || clip.is_some_and(|c| !c.keeps(s.center)) {
             continue;
         }
         let radius = s.radius.max(0.0);
@@ -117,7 +118,7 @@ mod tests {
         let view = camera.view(1.0);
         let splats = [splat(base + DVec3::new(2.0, 0.25, -0.125), 0.01)];
         let mut out = Vec::new();
-        pack(&view, &splats, ColorBy::Rgb, &mut out);
+        pack(&view, &splats, ColorBy::Rgb, None, &mut out);
         // Looking along +X with Z up, right is -Y.
         assert_eq!(out[0].center, [-0.25, -0.125, 2.0]);
         assert_eq!(out[0].radius, 0.01);
@@ -151,6 +152,7 @@ mod tests {
                 splat(DVec3::new(f64::NAN, 0.0, 0.0), 1.0),
             ],
             ColorBy::Rgb,
+            None,
             &mut out,
         );
         assert_eq!(out.len(), 2);
@@ -160,10 +162,11 @@ mod tests {
             &view,
             &[splat(DVec3::new(0.5, 0.0, 0.0), 1e3)],
             ColorBy::Rgb,
+            None,
             &mut out,
         );
         assert!((near - 1000.5e-6).abs() < 1e-12, "{near}");
-        assert_eq!(pack(&view, &[], ColorBy::Rgb, &mut out), 1.0);
+        assert_eq!(pack(&view, &[], ColorBy::Rgb, None, &mut out), 1.0);
         assert!(out.is_empty());
     }
 
@@ -176,7 +179,7 @@ mod tests {
             color: Some([1, 2, 3]),
             ..splat(DVec3::new(3.0, 0.0, 0.0), 1.0)
         };
-        pack(&camera.view(1.0), &[s], ColorBy::Rgb, &mut out);
+        pack(&camera.view(1.0), &[s], ColorBy::Rgb, None, &mut out);
         assert_eq!(out[0].normal, [0, -32767, 16384, 32767]);
         assert_eq!(out[0].color, [1, 2, 3, 255]);
     }

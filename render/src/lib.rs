@@ -26,6 +26,7 @@
 
 mod adapter;
 mod bsp;
+pub mod clip;
 mod color_by;
 mod draw_list;
 mod edl;
@@ -49,6 +50,7 @@ pub use adapter::{
     quiet_device_select_when_headless,
 };
 pub use bsp::pack_bsp_leaves;
+pub use clip::{Clip, Keep};
 pub use color_by::{ColorBy, RAMP, ramp};
 pub use draw_list::{CubeFrame, draw_cut};
 pub use geometry::snorm4;
@@ -113,6 +115,8 @@ pub struct SplatStyle {
     pub edl: Option<Edl>,
     /// What colors splats.
     pub color_by: ColorBy,
+    /// The clipping box splats are drawn on one side of, or none.
+    pub clip: Option<Clip>,
 }
 
 /// Eye-dome lighting: each pixel darkened by how far its neighbours, at
@@ -145,6 +149,7 @@ impl Default for SplatStyle {
             outline_caches: false,
             edl: None,
             color_by: ColorBy::Rgb,
+            clip: None,
         }
     }
 }

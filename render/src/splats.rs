@@ -131,7 +131,7 @@ impl SplatPipeline {
         let started = Instant::now();
         // `near` here only clamps View's planes, which are not used.
         let view = camera.view(1.0);
-        let near = instances::pack(&view, splats, style.color_by, &mut self.scratch);
+        let near = instances::pack(&view, splats, style.color_by, style.clip, &mut self.scratch);
         gpu.queue.write_buffer(
             &self.uniform,
             0,

@@ -37,6 +37,7 @@ fn style(kernel: Kernel) -> SplatStyle {
         outline_caches: false,
         edl: None,
         color_by: Default::default(),
+        clip: None,
     }
 }
 

@@ -91,6 +91,7 @@ fn render(
         kernel: Kernel::Square,
         edl: None,
         color_by: Default::default(),
+        clip: None,
         coverage: Coverage::Alpha,
         session: SessionOptions::default(),
         cache_bytes: 256 << 20,

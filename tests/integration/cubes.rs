@@ -141,6 +141,7 @@ fn streamed_cubes_at_tiny_eps_equal_the_geometry_image() {
             kernel: Kernel::Square,
             edl: None,
             color_by: Default::default(),
+            clip: None,
             coverage: Coverage::Alpha,
             session: SessionOptions::default(),
             cache_bytes: 256 << 20,

@@ -156,6 +156,7 @@ fn psnr_of_renders(
             kernel: Kernel::Square,
             edl: None,
             color_by: Default::default(),
+            clip: None,
             coverage: Coverage::Alpha,
             session: SessionOptions::default(),
             cache_bytes: 256 << 20,

@@ -572,6 +572,7 @@ fn streamed_plp_at_a_budget_equals_the_file_and_fetches_less() {
         kernel: Default::default(),
         edl: None,
         color_by: Default::default(),
+        clip: None,
         coverage: Default::default(),
         session: Default::default(),
         cache_bytes: 64 << 20,

@@ -72,6 +72,7 @@ pub(crate) fn job(source: Source, camera: CameraSpec) -> RenderJob {
         kernel: Kernel::Square,
         edl: None,
         color_by: Default::default(),
+        clip: None,
         coverage: Default::default(),
         session: SessionOptions::default(),
         cache_bytes: 256 << 20,

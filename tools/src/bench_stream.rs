@@ -135,6 +135,7 @@ pub fn run_bench(job: &BenchStreamJob) -> anyhow::Result<BenchStreamReport> {
         kernel: Kernel::Square,
         edl: None,
         color_by: Default::default(),
+        clip: None,
         coverage: Default::default(),
         session: SessionOptions::default(),
         cache_bytes: usize::MAX,

@@ -446,6 +446,7 @@ impl ViewerApp {
             kernel: s.kernel,
             edl: s.edl,
             color_by: s.color_by,
+            clip: s.clip,
             coverage: s.coverage,
             outline_caches: s.outline_caches,
             ..SplatStyle::default()

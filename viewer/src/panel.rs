@@ -1,7 +1,7 @@
 //! The panel: what the view is doing, and the settings a user changes
 //! while looking (rerun's and Potree's side panels are the model).
 
-use farfield_render::{ColorBy, Coverage, Edl, Kernel};
+use farfield_render::{Clip, ColorBy, Coverage, Edl, Keep, Kernel};
 
 use crate::status::Status;
 
@@ -16,6 +16,8 @@ pub struct Settings {
     pub edl: Option<Edl>,
     /// What colors splats: their RGB, or their height on a ramp.
     pub color_by: ColorBy,
+    /// The clipping box (fractions of the scene's bounds), or none.
+    pub clip: Option<Clip>,
     /// Cube hierarchies: how face coverage is used.
     pub coverage: Coverage,
     /// Most nodes a frame draws (Potree's point budget); 0 is none.
@@ -47,6 +49,7 @@ impl Default for Settings {
             kernel: Kernel::Square,
             edl: None,
             color_by: ColorBy::Rgb,
+            clip: None,
             coverage: Coverage::Alpha,
             node_budget: 0,
             target_frame_ms: 33.0,
@@ -241,6 +244,37 @@ fn stats(ui: &mut egui::Ui, status: &Status) {
     }
 }
 
+/// The clipping box: off, or which side is drawn, and its extent on each
+/// axis as shares of the scene's bounds.
+fn clip_ui(ui: &mut egui::Ui, clip: &mut Option<Clip>) {
+    ui.horizontal(|ui| {
+        ui.label("clip");
+        let keep = clip.map(|c| c.keep);
+        if ui.selectable_label(keep.is_none(), "off").clicked() {
+            *clip = None;
+        }
+        for (side, name) in [(Keep::Inside, "inside"), (Keep::Outside, "outside")] {
+            if ui.selectable_label(keep == Some(side), name).clicked() {
+                let whole = Clip::fractions(glam::DVec3::ZERO, glam::DVec3::ONE, side);
+                *clip = Some(Clip {
+                    keep: side,
+                    ..clip.unwrap_or(whole)
+                });
+            }
+        }
+    });
+    if let Some(c) = clip {
+        for (axis, name) in ["x", "y", "z"].into_iter().enumerate() {
+            ui.horizontal(|ui| {
+                ui.label(name);
+                ui.add(egui::Slider::new(&mut c.lo[axis], 0.0..=1.0).show_value(false));
+                ui.add(egui::Slider::new(&mut c.hi[axis], 0.0..=1.0).show_value(false));
+            });
+        }
+        *c = Clip::fractions(c.lo, c.hi, c.keep);
+    }
+}
+
 /// The measuring tool's switch, and what its points measure (in the
 /// scene's units).
 fn measure_ui(ui: &mut egui::Ui, status: &Status, actions: &mut Actions) {
@@ -334,6 +368,7 @@ fn settings_ui(
         });
         edl_ui(ui, &mut settings.edl);
         color_ui(ui, &mut settings.color_by, status_heights);
+        clip_ui(ui, &mut settings.clip);
     }
     if controls.threshold {
         ui.add(egui::Slider::new(&mut settings.threshold, 0.0..=16.0).text("threshold / eps (px)"));

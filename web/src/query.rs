@@ -1,5 +1,5 @@
 //! The viewer's options from the page's query string:
-//! `?panel=0&backend=webgl&kernel=round&color=elevation&edl=1&edl_strength=S&edl_radius=PX&threshold=2&budget=N&plp_budget=P&plp_budget_ms=MS&epsilon_px=E&outlines=1&cache_mib=M&access_token=T`,
+//! `?panel=0&backend=webgl&kernel=round&color=elevation&clip=inside&clip_box=X0,Y0,Z0,X1,Y1,Z1&edl=1&edl_strength=S&edl_radius=PX&threshold=2&budget=N&plp_budget=P&plp_budget_ms=MS&epsilon_px=E&outlines=1&cache_mib=M&access_token=T`,
 //! `flight=SECONDS` (the benchmark's scripted flight), and
 //! `session=NAME&role=follow|present` (a demo session), and
 //! `fallback=webgpu-lost` (set by the page itself: see [`WEBGPU_LOST`]).
@@ -81,6 +81,19 @@ pub fn parse(search: &str) -> Result<Query, String> {
         strength: strength.map_or(default.strength, |v| v as f32),
         radius_px: radius.map_or(default.radius_px, |v| v as f32),
     });
+    if let Some(keep) = params.get("clip") {
+        let keep = match keep.as_str() {
+            "inside" => Some(farfield_render::Keep::Inside),
+            "outside" => Some(farfield_render::Keep::Outside),
+            "off" => None,
+            other => return Err(format!("clip={other} is not inside, outside or off")),
+        };
+        let corners = match params.get("clip_box") {
+            None => [0.0, 0.0, 0.0, 1.0, 1.0, 1.0],
+            Some(text) => farfield_render::clip::parse_box(&text)?,
+        };
+        options.settings.clip = keep.map(|keep| farfield_render::Clip::from_corners(corners, keep));
+    }
     if let Some(name) = params.get("color") {
         options.settings.color_by = farfield_render::ColorBy::from_name(&name)
             .ok_or_else(|| format!("color={name} is not rgb or elevation"))?;

@@ -51,6 +51,7 @@ pub fn run(args: RenderArgs) -> anyhow::Result<()> {
         kernel: args.kernel.into(),
         edl: args.edl.edl(),
         color_by: args.color,
+        clip: args.clip.clip(),
         coverage: args.coverage,
         session: SessionOptions {
             allow_push: args.push,
@@ -157,6 +158,7 @@ fn fly_path(
             kernel: job.kernel,
             edl: job.edl,
             color_by: job.color_by,
+            clip: job.clip,
             coverage: job.coverage,
             ..SplatStyle::default()
         },

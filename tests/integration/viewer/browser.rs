@@ -863,3 +863,53 @@ fn a_measurement_between_two_picked_points_is_the_true_distance() {
     drop(browser);
     rt.block_on(server.shutdown()).unwrap();
 }
+
+/// The clipping box (`?clip=inside&clip_box=...`) draws what `farfield
+/// render --clip inside --clip-box ...` draws, on WebGPU and WebGL2, and
+/// hides what it should: kept to the upper half of the scene, the bunny's
+/// lower half is gone from the picture.
+#[test]
+fn a_clipping_box_hides_what_is_outside_it() {
+    let _one = ONE_BROWSER.lock().unwrap_or_else(|e| e.into_inner());
+    let Some((dir, bunny, web)) = setup("viewer-clip") else {
+        return;
+    };
+    let rt = runtime();
+    let server = rt.block_on(serve(&dir, &web, "127.0.0.1:0".parse().unwrap()));
+    let browser = Browser::start(SIZE.0, SIZE.1);
+    let camera = camera_of_fragment(START);
+    let upper = [0.0, 0.0, 0.5, 1.0, 1.0, 1.0];
+    let clip = farfield_render::Clip::from_corners(upper, farfield_render::Keep::Inside);
+    let clipped = reference_with(&bunny, camera, SIZE, |job| job.clip = Some(clip)).unwrap();
+    let plain = reference(&bunny, camera, SIZE.0, SIZE.1).unwrap();
+    let lowest_lit_row = |rgba: &[u8]| {
+        (0..SIZE.1)
+            .rev()
+            .find(|&y| {
+                (0..SIZE.0).any(|x| {
+                    let p = &rgba[((y * SIZE.0 + x) * 4) as usize..][..3];
+                    p.iter().map(|&c| u32::from(c)).sum::<u32>() > 30
+                })
+            })
+            .unwrap_or(0)
+    };
+    let (kept, all) = (lit(&clipped), lit(&plain));
+    let (clipped_bottom, plain_bottom) = (lowest_lit_row(&clipped), lowest_lit_row(&plain));
+    eprintln!(
+        "headless: {kept} of {all} lit pixels kept; lowest lit row {clipped_bottom} against {plain_bottom}"
+    );
+    assert!(kept < all * 4 / 5 && kept > all / 10, "{kept} of {all}");
+    assert!(
+        clipped_bottom + 10 < plain_bottom,
+        "{clipped_bottom} {plain_bottom}"
+    );
+    draws_like(
+        &browser,
+        &server,
+        "clip=inside&clip_box=0,0,0.5,1,1,1",
+        &clipped,
+        &plain,
+    );
+    drop(browser);
+    rt.block_on(server.shutdown()).unwrap();
+}
