@@ -116,6 +116,8 @@ pub struct Actions {
     /// with it).
     pub panel: Option<egui::Rect>,
     pub buttons: Option<egui::Rect>,
+    /// Where the panel's last line is (scrolled into reach, or not).
+    pub end: Option<egui::Rect>,
     /// Where the screenshot button is on screen.
     pub screenshot_button: Option<egui::Rect>,
     /// A preset view asked for.
@@ -182,21 +184,8 @@ pub fn show(
                     ui.heading("farfield");
                     stats(ui, status);
                     ui.separator();
-                    egui::CollapsingHeader::new("view")
-                        .default_open(true)
-                        .show(ui, |ui| settings_ui(ui, controls, settings, status.heights));
-                    egui::CollapsingHeader::new("demo")
-                        .default_open(true)
-                        .show(ui, |ui| actions.demo = demo.panel(ui));
-                    ui.separator();
-                    measure_ui(ui, status, &mut actions);
-                    ui.horizontal_wrapped(|ui| {
-                        for (preset, name, _) in crate::rig::Preset::ALL {
-                            if ui.button(name).clicked() {
-                                actions.preset = Some(preset);
-                            }
-                        }
-                    });
+                    // The buttons and tools first, where a short window
+                    // shows them without scrolling; the settings after.
                     let row = ui.horizontal_wrapped(|ui| {
                         actions.reset = ui.button("reset (R)").clicked();
                         let screenshot = ui.button("screenshot");
@@ -205,7 +194,23 @@ pub fn show(
                         actions.hide = ui.button("hide (Tab)").clicked();
                     });
                     actions.buttons = Some(row.response.rect);
-                    ui.small("drag: orbit · right/shift drag: pan · wheel: zoom · F: fly (WASD, QE) · double-click: focus");
+                    ui.horizontal_wrapped(|ui| {
+                        for (preset, name, _) in crate::rig::Preset::ALL {
+                            if ui.button(name).clicked() {
+                                actions.preset = Some(preset);
+                            }
+                        }
+                    });
+                    measure_ui(ui, status, &mut actions);
+                    ui.separator();
+                    egui::CollapsingHeader::new("view")
+                        .default_open(true)
+                        .show(ui, |ui| settings_ui(ui, controls, settings, status.heights));
+                    egui::CollapsingHeader::new("demo")
+                        .default_open(true)
+                        .show(ui, |ui| actions.demo = demo.panel(ui));
+                    let hint = ui.small("drag: orbit · right/shift drag: pan · wheel: zoom · F: fly (WASD, QE) · double-click: focus · M: measure");
+                    actions.end = Some(hint.rect);
                 });
         });
     actions.panel = Some(shown.response.rect);
@@ -472,17 +477,23 @@ mod tests {
     }
 
     #[test]
-    fn a_short_window_scrolls_the_panel_to_its_buttons() {
+    fn a_short_window_shows_the_buttons_and_scrolls_to_the_panel_s_end() {
         let height = 450.0;
-        let unscrolled = shown(800.0, height, 3, 0.0).buttons.unwrap();
+        let unscrolled = shown(800.0, height, 3, 0.0);
+        let buttons = unscrolled.buttons.unwrap();
         assert!(
-            unscrolled.top() > height,
-            "the test needs a panel taller than the window: buttons at {unscrolled:?}"
+            buttons.bottom() <= height,
+            "the buttons are out of reach unscrolled: {buttons:?} in a window {height} high"
         );
-        let scrolled = shown(800.0, height, 60, 200.0).buttons.unwrap();
+        let end = unscrolled.end.unwrap();
+        assert!(
+            end.top() > height,
+            "the test needs a panel taller than the window: its end at {end:?}"
+        );
+        let scrolled = shown(800.0, height, 60, 400.0).end.unwrap();
         assert!(
             scrolled.bottom() <= height && scrolled.top() >= 0.0,
-            "the buttons are out of reach: {scrolled:?} in a window {height} high"
+            "the panel's end is out of reach: {scrolled:?} in a window {height} high"
         );
     }
 
