@@ -17,7 +17,8 @@
 //!   ONLY_MEMORY=1 CACHE_MIB=1 cargo bench ...                # the memory flights only
 //!
 //! Needs what the browser and window tests need (chromium, chromedriver,
-//! Xvfb, the built viewer: `web/build`) and `../shared/data`.
+//! Xvfb, and the browser viewer: built into the server, or `web/build`'s)
+//! and `../shared/data`.
 
 #[allow(dead_code)] // The tests use more of it than the benchmark.
 #[path = "../integration/viewer/webdriver.rs"]
@@ -152,11 +153,16 @@ fn sizes(viewer: Option<&WebViewer>) -> anyhow::Result<()> {
             .stdin(Stdio::piped())
             .stdout(Stdio::piped())
             .spawn()?;
-        gzip.stdin
-            .take()
-            .context("gzip's input")?
-            .write_all(bytes)?;
-        Ok(gzip.wait_with_output()?.stdout.len())
+        // Fed from a thread: gzip's output fills its pipe long before a
+        // wasm's worth of input has gone in.
+        let mut input = gzip.stdin.take().context("gzip's input")?;
+        let bytes = bytes.to_vec();
+        let feeder = std::thread::spawn(move || input.write_all(&bytes));
+        let out = gzip.wait_with_output()?.stdout.len();
+        feeder
+            .join()
+            .map_err(|_| anyhow::anyhow!("gzip's feeder panicked"))??;
+        Ok(out)
     };
     for file in web_assets::FILES {
         let bytes = match viewer {
