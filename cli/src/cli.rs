@@ -194,16 +194,8 @@ pub struct ViewArgs {
     /// The threshold a resting view refines to (spheres: pixels; cubes: eps).
     #[arg(long, default_value_t = 1.0)]
     pub threshold: f64,
-    #[arg(long, value_enum, default_value = "square")]
-    pub kernel: KernelArg,
     #[command(flatten)]
-    pub edl: EdlArgs,
-    /// What colors splats: `rgb`, or `elevation` (a height ramp over the
-    /// scene's bounds).
-    #[arg(long, value_parser = parse_color_by, default_value = "rgb")]
-    pub color: farfield_render::ColorBy,
-    #[command(flatten)]
-    pub clip: ClipArgs,
+    pub splats: SplatArgs,
     /// Most nodes a frame draws (0: no budget).
     #[arg(long, default_value_t = 0)]
     pub budget: u64,
@@ -436,6 +428,22 @@ pub struct BenchPlpArgs {
     pub json: bool,
 }
 
+/// How splats look: what `view` and `render` share, so a window and its
+/// headless reference draw alike.
+#[derive(Debug, Clone, Copy, clap::Args)]
+pub struct SplatArgs {
+    #[arg(long, value_enum, default_value = "square")]
+    pub kernel: KernelArg,
+    #[command(flatten)]
+    pub edl: EdlArgs,
+    /// What colors splats: `rgb`, or `elevation` (a height ramp over the
+    /// scene's bounds).
+    #[arg(long, value_parser = parse_color_by, default_value = "rgb")]
+    pub color: farfield_render::ColorBy,
+    #[command(flatten)]
+    pub clip: ClipArgs,
+}
+
 /// Eye-dome lighting over splats (Potree's point-cloud shading).
 #[derive(Debug, Clone, Copy, clap::Args)]
 pub struct EdlArgs {
@@ -586,16 +594,8 @@ pub struct RenderArgs {
     /// dropped, the rest drawn opaque, 1995).
     #[arg(long, default_value = "alpha")]
     pub coverage: farfield_render::Coverage,
-    #[arg(long, value_enum, default_value = "square")]
-    pub kernel: KernelArg,
     #[command(flatten)]
-    pub edl: EdlArgs,
-    /// What colors splats: `rgb`, or `elevation` (a height ramp over the
-    /// scene's bounds).
-    #[arg(long, value_parser = parse_color_by, default_value = "rgb")]
-    pub color: farfield_render::ColorBy,
-    #[command(flatten)]
-    pub clip: ClipArgs,
+    pub splats: SplatArgs,
     /// PLP files: the triangles a frame may draw, as a share of the scene
     /// (`5%`) or a count (`20000`); `all` draws everything.
     #[arg(long, default_value = "all")]
@@ -680,10 +680,10 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
 fn view_job(args: ViewArgs) -> anyhow::Result<commands::view::ViewJob> {
     let settings = farfield_viewer::panel::Settings {
         threshold: args.threshold,
-        kernel: args.kernel.into(),
-        edl: args.edl.edl(),
-        color_by: args.color,
-        clip: args.clip.clip(),
+        kernel: args.splats.kernel.into(),
+        edl: args.splats.edl.edl(),
+        color_by: args.splats.color,
+        clip: args.splats.clip.clip(),
         node_budget: args.budget,
         cache_mib: args.cache_mib.max(1),
         plp_budget_percent: args.plp_budget.clamp(0.0, 100.0),
